@@ -1,0 +1,29 @@
+# One entry point for people and CI. `make demo` and `make test` set up .venv themselves.
+PYTHON ?= python3.11
+VENV := .venv
+BIN := $(VENV)/bin
+STAMP := $(VENV)/.installed
+
+.PHONY: setup demo test bench bench-quick clean
+
+$(STAMP): setup.py setup.cfg package.xml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[ros,test,bench]'
+	touch $(STAMP)
+
+setup: $(STAMP)
+
+demo: $(STAMP)
+	$(BIN)/frisicp-demo
+
+# pytest exits 5 when it collects nothing: that is a failure here, said plainly.
+test: $(STAMP)
+	@$(BIN)/python -m pytest -q test; rc=$$?; \
+	  if [ $$rc -eq 5 ]; then echo "pytest collected no tests: failing"; fi; exit $$rc
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/core_speed.py
+
+clean:
+	rm -rf $(VENV) build install log *.egg-info

@@ -1,0 +1,35 @@
+"""frisicp_core: isotropic-scale point-set registration (FRISICP, Li et al. 2011) in numpy/scipy.
+
+No ROS imports here; the ROS layer lives in ``frisicp_ros``.
+"""
+
+from .config import ConvergenceCriteria, Initialization, Method, RegistrationConfig
+from .downsample import downsample
+from .estimate import estimate_similarity
+from .nearest import NearestNeighbors, nearest
+from .points import as_point_set
+from .registration import register
+from .shapes import bumpy_surface, closed_contour
+from .result import IterationRecord, LevelReport, RegistrationResult
+from .similarity import Similarity, rotation_angle
+
+__all__ = [
+    "ConvergenceCriteria",
+    "Initialization",
+    "IterationRecord",
+    "LevelReport",
+    "Method",
+    "NearestNeighbors",
+    "RegistrationConfig",
+    "RegistrationResult",
+    "Similarity",
+    "as_point_set",
+    "bumpy_surface",
+    "closed_contour",
+    "downsample",
+    "estimate_similarity",
+    "nearest",
+    "register",
+    "rotation_angle",
+]
+__version__ = "0.1.0"

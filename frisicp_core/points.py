@@ -1,0 +1,69 @@
+"""Validation of point sets: every bad input ends in a ValueError that names the problem."""
+
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from .similarity import FloatArray
+
+# Variance ratio below which a principal direction counts as absent (rank deficiency).
+_RANK_TOLERANCE = 1e-12
+
+
+def as_point_set(points: ArrayLike, name: str, *, drop_nonfinite: bool = False) -> FloatArray:
+    """Return ``points`` as a C-contiguous (N, m) float64 array fit for registration.
+
+    Raises ``ValueError`` for: not 2-D, m < 2, non-finite rows (unless ``drop_nonfinite``, which
+    removes them), fewer than m + 1 points, or a degenerate geometry: fewer than max(2, m - 1)
+    independent directions (all points identical, or collinear), where the pose is not
+    determined.
+    """
+    try:
+        pts = np.asarray(points, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise ValueError(f"{name}: cannot be read as a numeric array ({err})") from None
+    if pts.ndim != 2:
+        raise ValueError(f"{name}: expected an (N, m) array of points, got shape {pts.shape}")
+    n, dim = pts.shape
+    if dim < 2:
+        raise ValueError(f"{name}: points must have at least 2 coordinates, got {dim}")
+    finite = np.isfinite(pts).all(axis=1)
+    bad = int(n - np.count_nonzero(finite))
+    if bad:
+        if not drop_nonfinite:
+            raise ValueError(
+                f"{name}: {bad} of {n} points contain NaN or Inf (pass drop_nonfinite=True to drop them)"
+            )
+        pts = pts[finite]
+        n = pts.shape[0]
+    if n == 0:
+        raise ValueError(f"{name}: the point set is empty" + (" after dropping NaN/Inf rows" if bad else ""))
+    if n < dim + 1:
+        raise ValueError(f"{name}: {n} points is too few in {dim}-D, need at least {dim + 1}")
+    rank = _spanned_directions(pts)
+    needed = max(2, dim - 1)
+    if rank < needed:
+        what = "all points are identical" if rank == 0 else "the points are collinear" if rank == 1 else (
+            f"the points span only {rank} of {dim} dimensions")
+        raise ValueError(f"{name}: degenerate geometry, {what}; registration needs {needed} independent directions")
+    return np.ascontiguousarray(pts)
+
+
+def _spanned_directions(pts: FloatArray) -> int:
+    centred = pts - pts.mean(axis=0)
+    eig = np.linalg.eigvalsh(centred.T @ centred)
+    top = eig[-1]
+    if not top > 0:
+        return 0
+    return int(np.count_nonzero(eig > top * _RANK_TOLERANCE))
+
+
+def check_same_dimension(data: FloatArray, model: FloatArray) -> None:
+    if data.shape[1] != model.shape[1]:
+        raise ValueError(f"data has {data.shape[1]} coordinates per point but model has {model.shape[1]}")
+
+
+def rms_radius(pts: FloatArray) -> float:
+    """sqrt(mean ||p - centroid||^2): the set's size, used for scale guesses and tolerances."""
+    return float(np.sqrt(((pts - pts.mean(axis=0)) ** 2).sum(axis=1).mean()))

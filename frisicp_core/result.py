@@ -1,0 +1,56 @@
+"""What a registration returns (modelled on Open3D's RegistrationResult)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .config import Method
+from .similarity import Similarity
+
+
+@dataclass(frozen=True)
+class IterationRecord:
+    """One iteration: errors measured with the similarity in force at its start."""
+
+    level: int
+    iteration: int
+    rms: float
+    forward_rms: float
+    backward_rms: float
+    seconds: float  # since the start of ``register``
+
+
+@dataclass(frozen=True)
+class LevelReport:
+    data_points: int
+    model_points: int
+    iterations: int
+    converged: bool
+    rms: float
+
+
+@dataclass(frozen=True)
+class RegistrationResult:
+    """The similarity mapping data into the model frame (model ≈ s R data + t) and its quality.
+
+    Errors are root-mean-square nearest-point distances in the model frame over the pairs that
+    were used (after trimming/gating): ``forward_rms`` data -> model, ``backward_rms``
+    model -> data, ``rms`` over both pair sets together (the FRISICP objective, Eq. 3).
+    ``fitness`` is the fraction of pairs used. ``history`` has one record per iteration.
+    """
+
+    similarity: Similarity
+    rms: float
+    forward_rms: float
+    backward_rms: float
+    fitness: float
+    converged: bool
+    levels: tuple[LevelReport, ...]
+    history: tuple[IterationRecord, ...]
+    seconds: float
+    method: Method
+
+    @property
+    def iterations(self) -> tuple[int, ...]:
+        """Iterations per level, coarse to fine."""
+        return tuple(level.iterations for level in self.levels)

@@ -1,0 +1,81 @@
+"""Point cloud files for the CLI, read as (N, m) float64 coordinates.
+
+PLY through plyfile (ASCII and binary), PCD through pypcd4 (ascii, binary and
+binary_compressed), XYZ/CSV/TXT through numpy (an optional header line), NPY through numpy.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from frisicp_core.similarity import FloatArray
+
+
+class CloudFileError(ValueError):
+    """A point cloud file that cannot be read; the message names the file and the problem."""
+
+
+def read_points(path: str | Path) -> FloatArray:
+    """Coordinates of a point cloud file: x, y and z (z only if present) as an (N, m) array."""
+    file = Path(path)
+    if not file.is_file():
+        raise CloudFileError(f"{file}: no such file")
+    suffix = file.suffix.lower()
+    try:
+        if suffix == ".ply":
+            return _read_ply(file)
+        if suffix == ".pcd":
+            return _read_pcd(file)
+        if suffix == ".npy":
+            return _as_points(np.load(file, allow_pickle=False), file)
+        if suffix in (".xyz", ".csv", ".txt", ".pts"):
+            return _read_text(file)
+    except CloudFileError:
+        raise
+    except Exception as err:  # noqa: BLE001 - any parser failure becomes one clear message
+        raise CloudFileError(f"{file}: cannot read it as {suffix[1:].upper()} ({err})") from None
+    raise CloudFileError(f"{file}: unknown extension {suffix!r} (use .ply, .pcd, .xyz, .csv, .txt or .npy)")
+
+
+def _as_points(array: np.ndarray, file: Path) -> FloatArray:
+    pts = np.asarray(array, dtype=np.float64)
+    if pts.ndim != 2 or pts.shape[1] < 2:
+        raise CloudFileError(f"{file}: expected rows of at least 2 coordinates, got shape {pts.shape}")
+    return pts
+
+
+def _read_ply(file: Path) -> FloatArray:
+    from plyfile import PlyData
+
+    vertex = PlyData.read(str(file))["vertex"]
+    names = [p.name for p in vertex.properties]
+    axes = [a for a in ("x", "y", "z") if a in names]
+    if axes[:2] != ["x", "y"]:
+        raise CloudFileError(f"{file}: the vertex element has no x and y properties ({names})")
+    return np.column_stack([np.asarray(vertex[a], dtype=np.float64) for a in axes])
+
+
+def _read_text(file: Path) -> FloatArray:
+    with file.open() as handle:
+        first = handle.readline()
+    delimiter = "," if "," in first else None
+    try:
+        float(first.replace(",", " ").split()[0])
+        skip = 0
+    except (ValueError, IndexError):
+        skip = 1  # a header line
+    table = np.loadtxt(file, delimiter=delimiter, skiprows=skip, ndmin=2)
+    return _as_points(table[:, : min(3, table.shape[1])], file)
+
+
+
+def _read_pcd(file: Path) -> FloatArray:
+    from pypcd4 import PointCloud
+
+    cloud = PointCloud.from_path(file)
+    axes = tuple(a for a in ("x", "y", "z") if a in cloud.fields)
+    if axes[:2] != ("x", "y"):
+        raise CloudFileError(f"{file}: PCD has no x and y fields ({cloud.fields})")
+    return np.asarray(cloud.numpy(axes), dtype=np.float64)
