@@ -49,7 +49,7 @@ class ConvergenceCriteria:
     """
 
     max_iterations: int = 100
-    relative_motion: float = 1e-6
+    relative_motion: float = 1e-5
     relative_rmse: float = 1e-9
     coarse_relative_motion: float = 1e-3
 

@@ -35,6 +35,8 @@ def estimate_similarity(
     n, dim = xs.shape
     if n == 0:
         raise ValueError("need at least one pair of points")
+    if not (np.isfinite(xs).all() and np.isfinite(ys).all()):
+        raise ValueError("x and y must be finite (found NaN or Inf)")
     if weights is None:
         w = np.full(n, 1.0 / n)
     else:
@@ -66,5 +68,5 @@ def estimate_similarity(
         if not scale > 0:
             raise ValueError("degenerate pairs: the estimated scale is not positive")
     translation = my - scale * rotation @ mx
-    return Similarity(scale, rotation, translation)
+    return Similarity._trusted(scale, rotation, translation)
 

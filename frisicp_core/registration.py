@@ -38,6 +38,11 @@ from .result import IterationRecord, LevelReport, RegistrationResult
 from .similarity import FloatArray, Similarity
 
 
+# Iterations each initial hypothesis gets on the coarsest level before the best is chosen:
+# enough for the wrong ones to settle into their (higher-error) local minima.
+_SCREENING_ITERATIONS = 10
+
+
 @dataclass
 class _Level:
     """One resolution: the thinned sets, their trees and moments used by the motion test."""
@@ -137,15 +142,16 @@ class _Solver:
             fwd_sq.shape[0] + back_sq.shape[0],
         )
 
-    def run_level(self, index: int, level: _Level, sim: Similarity, *, final: bool
-                  ) -> tuple[Similarity, LevelReport, _Pairs]:
+    def run_level(self, index: int, level: _Level, sim: Similarity, *, final: bool,
+                  max_iterations: int | None = None) -> tuple[Similarity, LevelReport, _Pairs]:
         criteria = self.config.criteria
+        max_iterations = max_iterations or criteria.max_iterations
         tolerance = (criteria.relative_motion if final else criteria.coarse_relative_motion) * self.model_radius
         previous_rms = np.inf
         converged = False
         iterations = 0
         pairs = self.correspond(level, sim)
-        for iterations in range(1, criteria.max_iterations + 1):
+        for iterations in range(1, max_iterations + 1):
             rms = _rms(pairs.forward_sq, pairs.backward_sq)
             self._record(index, iterations, pairs, rms)
             if previous_rms - rms <= criteria.relative_rmse * previous_rms and iterations > 1:
@@ -223,15 +229,15 @@ def register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig | Non
     bidirectional = config.method is Method.FRISICP
     last = len(pyramid) - 1
 
-    levels = [_Level.build(d, m, bidirectional, config.backend) for d, m in pyramid[:1]]
+    coarsest = _Level.build(*pyramid[0], bidirectional, config.backend)
     guesses = _initial_guesses(data_set, model_set, config, scale_bounds)
-    best = None
-    for guess in guesses:
-        candidate = solver.run_level(0, levels[0], guess, final=last == 0)
-        if best is None or candidate[1].rms < best[1].rms:
-            best = candidate
-    assert best is not None
-    sim, report, pairs = best
+    if len(guesses) > 1:
+        # Screen the hypotheses with a short run each; only the best one is iterated to the end.
+        screened = [solver.run_level(0, coarsest, g, final=False, max_iterations=_SCREENING_ITERATIONS)
+                    for g in guesses]
+        guesses = [min(screened, key=lambda outcome: outcome[1].rms)[0]]
+        solver.history.clear()
+    sim, report, pairs = solver.run_level(0, coarsest, guesses[0], final=last == 0)
     reports = [report]
     for index in range(1, last + 1):
         level = _Level.build(*pyramid[index], bidirectional, config.backend)

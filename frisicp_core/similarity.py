@@ -42,6 +42,21 @@ class Similarity:
         object.__setattr__(self, "rotation", rotation)
         object.__setattr__(self, "translation", translation)
 
+    @classmethod
+    def _trusted(cls, scale: float, rotation: FloatArray, translation: FloatArray) -> Similarity:
+        """Construct without validation, for values a solver produced (R orthonormal by construction).
+
+        Validation costs more than an iteration on a small level, and the inner loop builds one
+        similarity per iteration.
+        """
+        sim = object.__new__(cls)
+        rotation.setflags(write=False)
+        translation.setflags(write=False)
+        object.__setattr__(sim, "scale", float(scale))
+        object.__setattr__(sim, "rotation", rotation)
+        object.__setattr__(sim, "translation", translation)
+        return sim
+
     @property
     def dim(self) -> int:
         return int(self.translation.shape[0])
@@ -60,7 +75,7 @@ class Similarity:
     def __matmul__(self, other: Similarity) -> Similarity:
         if not isinstance(other, Similarity):
             return NotImplemented
-        return Similarity(
+        return Similarity._trusted(
             self.scale * other.scale,
             self.rotation @ other.rotation,
             self.scale * self.rotation @ other.translation + self.translation,
@@ -69,7 +84,7 @@ class Similarity:
     def inverse(self) -> Similarity:
         """``T^-1(y) = R^T (y - t) / s``."""
         rt = self.rotation.T
-        return Similarity(1.0 / self.scale, rt, -(rt @ self.translation) / self.scale)
+        return Similarity._trusted(1.0 / self.scale, rt, -(rt @ self.translation) / self.scale)
 
     def matrix(self) -> FloatArray:
         """The (m+1) x (m+1) homogeneous matrix ``[[s R, t], [0, 1]]``."""

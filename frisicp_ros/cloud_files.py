@@ -6,6 +6,7 @@ binary_compressed), XYZ/CSV/TXT through numpy (an optional header line), NPY thr
 
 from __future__ import annotations
 
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -49,7 +50,10 @@ def _as_points(array: np.ndarray, file: Path) -> FloatArray:
 def _read_ply(file: Path) -> FloatArray:
     from plyfile import PlyData
 
-    vertex = PlyData.read(str(file))["vertex"]
+    with warnings.catch_warnings():
+        # Scans often declare an empty face element, which makes numpy's loadtxt warn.
+        warnings.filterwarnings("ignore", message="loadtxt: input contained no data")
+        vertex = PlyData.read(str(file))["vertex"]
     names = [p.name for p in vertex.properties]
     axes = [a for a in ("x", "y", "z") if a in names]
     if axes[:2] != ["x", "y"]:
