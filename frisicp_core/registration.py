@@ -28,6 +28,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .acceleration import AndersonAccelerator
 from .config import Initialization, Method, RegistrationConfig
 from .downsample import downsample, level_sizes
 from .estimate import estimate_similarity
@@ -144,33 +145,45 @@ class _Solver:
 
     def run_level(self, index: int, level: _Level, sim: Similarity, *, final: bool,
                   max_iterations: int | None = None) -> tuple[Similarity, LevelReport, _Pairs]:
+        """Iterate correspond -> solve on one level until the similarity stops moving."""
         criteria = self.config.criteria
         max_iterations = max_iterations or criteria.max_iterations
         tolerance = (criteria.relative_motion if final else criteria.coarse_relative_motion) * self.model_radius
-        previous_rms = np.inf
+        accelerator = (AndersonAccelerator(sim, level.data_mean, self.model_radius)
+                       if self.config.acceleration else None)
+        pairs = self.correspond(level, sim)
+        rms = _rms(pairs.forward_sq, pairs.backward_sq)
         converged = False
         iterations = 0
-        pairs = self.correspond(level, sim)
         for iterations in range(1, max_iterations + 1):
-            rms = _rms(pairs.forward_sq, pairs.backward_sq)
             self._record(index, iterations, pairs, rms)
-            if previous_rms - rms <= criteria.relative_rmse * previous_rms and iterations > 1:
-                converged = True
-                break
-            previous_rms = rms
             try:
-                new = estimate_similarity(pairs.source, pairs.target, with_scale=self.with_scale,
-                                          scale_bounds=self.scale_bounds)
+                step = estimate_similarity(pairs.source, pairs.target, with_scale=self.with_scale,
+                                           scale_bounds=self.scale_bounds)
             except ValueError:
                 break  # degenerate pairs (e.g. a collapsed scale): keep the last valid similarity
-            step = level.motion(sim, new)
-            sim = new
-            if step <= tolerance:
-                converged = True  # the errors below were measured one sub-tolerance step earlier
+            if level.motion(sim, step) <= tolerance:
+                sim, converged = step, True
+                if final:  # report the errors of the returned similarity itself
+                    pairs = self.correspond(level, sim)
+                    rms = _rms(pairs.forward_sq, pairs.backward_sq)
                 break
+            proposal = accelerator.propose(sim, step) if accelerator else None
+            if proposal is not None:
+                proposal_pairs = self.correspond(level, proposal)
+                proposal_rms = _rms(proposal_pairs.forward_sq, proposal_pairs.backward_sq)
+                if proposal_rms < rms:
+                    sim, pairs, rms = proposal, proposal_pairs, proposal_rms
+                    continue
+                accelerator.reset()  # extrapolation overshot: take the plain (monotone) step
+            previous_rms = rms
+            sim = step
             pairs = self.correspond(level, sim)
-        report = LevelReport(level.data.shape[0], level.model.shape[0], iterations, converged,
-                             _rms(pairs.forward_sq, pairs.backward_sq))
+            rms = _rms(pairs.forward_sq, pairs.backward_sq)
+            if previous_rms - rms <= criteria.relative_rmse * previous_rms:
+                converged = True
+                break
+        report = LevelReport(level.data.shape[0], level.model.shape[0], iterations, converged, rms)
         return sim, report, pairs
 
     def _record(self, level: int, iteration: int, pairs: _Pairs, rms: float) -> None:
