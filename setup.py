@@ -48,6 +48,8 @@ setup(
     entry_points={
         "console_scripts": [
             "frisicp = frisicp_ros.cli:main",
+            "register_node = frisicp_ros.node:main",
+            "frisicp-demo = frisicp_ros.demo:main",
         ],
     },
 )
