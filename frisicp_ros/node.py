@@ -8,14 +8,17 @@ publishes ``~/transform``, ``~/scale``, ``~/rms``, ``~/similarity``, ``~/aligned
 
 from __future__ import annotations
 
+import sys
 import threading
 import time
 from dataclasses import dataclass
 from typing import Any
 
 import rclpy
+import rclpy.logging
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -214,18 +217,24 @@ class RegistrationNode(Node):
         super().destroy_node()
 
 
-def main(args: list[str] | None = None) -> None:
-    """Console script ``register_node``; Ctrl-C and external shutdown end it quietly."""
+def main(args: list[str] | None = None) -> int:
+    """Console script ``register_node``; Ctrl-C and external shutdown end it quietly (code 0)."""
+    rclpy.init(args=args)
+    node: RegistrationNode | None = None
     try:
-        with rclpy.init(args=args):
-            node = RegistrationNode()
-            try:
-                rclpy.spin(node)
-            finally:
-                node.destroy_node()
+        node = RegistrationNode()
+        rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except (ValueError, ParameterException) as err:  # e.g. a bad --params-file value
+        rclpy.logging.get_logger(NODE_NAME).fatal(f"invalid parameters: {err}")
+        return 2
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())
