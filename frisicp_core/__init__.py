@@ -4,9 +4,9 @@ No ROS imports here; the ROS layer lives in ``frisicp_ros``.
 """
 
 from .config import ConvergenceCriteria, Initialization, Method, RegistrationConfig
-from .downsample import downsample
+from .sampling import downsample
 from .estimate import estimate_similarity
-from .nearest import NearestNeighbors, nearest
+from .kdtree import NearestNeighbors, nearest
 from .points import as_point_set
 from .registration import register
 from .shapes import bumpy_surface, closed_contour

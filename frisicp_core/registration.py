@@ -30,10 +30,10 @@ from numpy.typing import ArrayLike
 
 from .acceleration import AndersonAccelerator
 from .config import Initialization, Method, RegistrationConfig
-from .downsample import downsample, level_sizes
+from .sampling import downsample, level_sizes
 from .estimate import estimate_similarity
 from .moments import covariance_scale_bounds, moment_guesses
-from .nearest import NearestNeighbors
+from .kdtree import NearestNeighbors
 from .points import as_point_set, check_same_dimension, rms_radius
 from .result import IterationRecord, LevelReport, RegistrationResult
 from .similarity import FloatArray, Similarity
