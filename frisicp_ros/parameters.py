@@ -77,6 +77,7 @@ SPECS: dict[str, ParameterSpec] = {
         float_range=(0.0, 1e6)),
     "initialization": ParameterSpec("start without warm start: identity, moments, principal-axes",
                                     choices=tuple(i.value for i in Initialization)),
+    "acceleration": ParameterSpec("Anderson acceleration of the iterations (kept only when it lowers the error)"),
     "seed": ParameterSpec("seed of the random down-sampling", int_range=(0, 2**31 - 1)),
     "backend": ParameterSpec("KD-tree library: auto, pykdtree, scipy", choices=("auto", "pykdtree", "scipy")),
 }

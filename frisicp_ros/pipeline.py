@@ -28,6 +28,12 @@ from .pairing import PAIRING_MODES
 from .pointcloud2 import CloudError, check_dims, cloud_to_points, stamp_ns
 
 
+# Algorithm defaults follow the core's; config/frisicp.yaml repeats them (a test compares).
+_CORE_DEFAULTS = RegistrationConfig()
+# RegistrationConfig fields that are not parameters: warm start and NaN handling are the pipeline's.
+NOT_PARAMETERS = ("initial", "drop_nonfinite", "criteria")
+
+
 @dataclass(frozen=True)
 class PipelineSettings:
     """The node's parameters as plain values (same names, same defaults as config/frisicp.yaml).
@@ -48,18 +54,19 @@ class PipelineSettings:
     model_frame: str = ""
     data_frame: str = ""
     publish_aligned: bool = True
-    method: str = Method.FRISICP.value
-    levels: int = 3
-    coarsest_points: int = 1000
-    max_iterations: int = 100
-    relative_motion: float = 1e-6
-    relative_rmse: float = 1e-9
-    coarse_relative_motion: float = 1e-3
-    overlap: float = 1.0
-    max_distance: float = 0.0
-    initialization: str = Initialization.PRINCIPAL_AXES.value
-    seed: int = 0
-    backend: str = "auto"
+    method: str = _CORE_DEFAULTS.method.value
+    levels: int = _CORE_DEFAULTS.levels
+    coarsest_points: int = _CORE_DEFAULTS.coarsest_points
+    max_iterations: int = _CORE_DEFAULTS.criteria.max_iterations
+    relative_motion: float = _CORE_DEFAULTS.criteria.relative_motion
+    relative_rmse: float = _CORE_DEFAULTS.criteria.relative_rmse
+    coarse_relative_motion: float = _CORE_DEFAULTS.criteria.coarse_relative_motion
+    overlap: float = _CORE_DEFAULTS.overlap
+    max_distance: float = _CORE_DEFAULTS.max_distance or 0.0
+    initialization: str = _CORE_DEFAULTS.initialization.value
+    acceleration: bool = _CORE_DEFAULTS.acceleration
+    seed: int = _CORE_DEFAULTS.seed
+    backend: str = _CORE_DEFAULTS.backend
 
     def __post_init__(self) -> None:
         check_dims(self.dims)
@@ -82,6 +89,7 @@ class PipelineSettings:
             method=Method(self.method), levels=self.levels, coarsest_points=self.coarsest_points,
             criteria=criteria, overlap=self.overlap, max_distance=self.max_distance or None,
             initialization=Initialization(self.initialization), initial=initial,
+            acceleration=self.acceleration,
             drop_nonfinite=False,  # cloud_to_points already dropped NaN/Inf points
             seed=self.seed, backend=self.backend)
 

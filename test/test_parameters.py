@@ -37,3 +37,16 @@ def test_descriptors_carry_descriptions_and_ranges():
     assert levels.integer_range[0].from_value == 1
     assert "frisicp" in parameters.descriptor("method", parameters.SPECS["method"]).additional_constraints
     assert parameters.descriptor("model_qos", parameters.SPECS["model_qos"]).read_only
+
+
+def test_every_core_option_is_a_parameter():
+    from dataclasses import fields as dataclass_fields
+
+    from frisicp_core import ConvergenceCriteria, RegistrationConfig
+    from frisicp_ros.pipeline import NOT_PARAMETERS
+
+    core = {f.name for f in dataclass_fields(RegistrationConfig)} - set(NOT_PARAMETERS)
+    core |= {f.name for f in dataclass_fields(ConvergenceCriteria)}
+    assert core <= set(parameters.SPECS), sorted(core - set(parameters.SPECS))
+    config = PipelineSettings().registration_config()
+    assert config == RegistrationConfig(drop_nonfinite=False)  # same defaults as the core
