@@ -146,3 +146,50 @@ def test_real_partial_overlap_scan_pair(scale):
     assert rotation_error < 1.0
     assert scale_error < 0.01
     assert translation_error < 0.005
+
+
+@pytest.mark.parametrize("acceleration", [False, True])
+def test_error_never_increases_within_a_level(acceleration):
+    """Plain ICP steps are monotone; accelerated proposals are kept only when they lower the error."""
+    model = SHAPES["3-D surface"]
+    data, _ = scaled_copy(model, 2.3, degrees=40.0)
+    data = data + np.random.default_rng(2).normal(scale=0.01, size=data.shape)  # a noisy, slow problem
+    result = register(data, model, RegistrationConfig(acceleration=acceleration, overlap=0.9))
+    for level in range(len(result.levels)):
+        errors_of_level = [r.rms for r in result.history if r.level == level]
+        assert all(b <= a * (1 + 1e-12) for a, b in zip(errors_of_level, errors_of_level[1:]))
+
+
+def test_acceleration_needs_far_fewer_iterations_on_real_partial_overlap():
+    """Point-to-point ICP crawls on real scans; extrapolated steps get there in fewer iterations."""
+    from frisicp_core import downsample
+
+    rng = np.random.default_rng(0)
+    model = downsample(bunny("bun000.ply"), 10000, rng)
+    scan = downsample(bunny("bun045.ply"), 10000, rng)
+    truth = scan_pose("bun000.ply").inverse() @ scan_pose("bun045.ply")
+    plain = register(scan, model, RegistrationConfig.robust(acceleration=False))
+    fast = register(scan, model, RegistrationConfig.robust())
+    assert sum(fast.iterations) < 0.75 * sum(plain.iterations)
+    for result in (plain, fast):
+        rotation_error, scale_error = errors(result.similarity, truth)
+        assert rotation_error < 0.5 and scale_error < 0.005
+
+
+def test_iteration_cap_is_honoured_and_reported_as_not_converged():
+    from frisicp_core import ConvergenceCriteria
+
+    model = SHAPES["2-D contour"]
+    data, _ = scaled_copy(model, 0.3, degrees=30.0)
+    result = register(data, model, RegistrationConfig.paper(levels=1, criteria=ConvergenceCriteria(max_iterations=2)))
+    assert result.iterations == (2,) and not result.converged
+
+
+def test_du_scale_bounds_contain_the_true_scale():
+    from frisicp_core.moments import covariance_scale_bounds
+
+    model = SHAPES["3-D surface"]
+    for scale in PAPER_SCALES:
+        data, truth = scaled_copy(model, scale)
+        low, high = covariance_scale_bounds(data, model)
+        assert low <= truth.scale <= high
