@@ -12,7 +12,7 @@ PACKAGE = "frisicp_ros"
 setup(
     name=PACKAGE,
     version="0.1.0",
-    packages=["frisicp_core", "frisicp_ros"],
+    packages=["frisicp_core", "frisicp_ros", "frisicp_ros.bench"],
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
@@ -39,6 +39,9 @@ setup(
             "pillow>=9",
         ],
         "bench": ["matplotlib>=3.6", "pillow>=9"],
+        # Only for comparing with Open3D in `frisicp bench` (about 900 MB; its wheel also needs
+        # the system library libusb-1.0). Never a runtime or test dependency.
+        "open3d": ["open3d>=0.18"],
     },
     zip_safe=True,
     maintainer="frisicp_ros maintainers",

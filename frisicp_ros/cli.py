@@ -13,7 +13,8 @@ import sys
 from collections.abc import Sequence
 
 # Modules providing subcommands, in the order `frisicp --help` lists them.
-SUBCOMMANDS = ("frisicp_ros.register_command", "frisicp_ros.bag_command", "frisicp_ros.bag_info_command")
+SUBCOMMANDS = ("frisicp_ros.register_command", "frisicp_ros.bag_command", "frisicp_ros.bag_info_command",
+               "frisicp_ros.bench_command")
 
 
 class CommandError(Exception):
