@@ -39,6 +39,7 @@ from .outputs import ALWAYS_PUBLISHED, OUTPUT_TOPICS, MessageTypes, build_output
 from .pairing import Pairer
 from .pipeline import PairOutcome, PipelineSettings, RegistrationPipeline
 from .pointcloud2 import stamp_ns
+from .replay import BagReplay, declare_replay_parameters
 
 NODE_NAME = "frisicp"
 _WARN_THROTTLE_SEC = 2.0
@@ -82,8 +83,12 @@ class RegistrationNode(Node):
         self._output_publishers = {suffix: self.create_publisher(self._types[type_name], f"~/{suffix}", OUTPUT_QOS)
                             for suffix, type_name in OUTPUT_TOPICS.items()}
         self._diagnostics_publisher = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self.create_subscription(PointCloud2, "model", self._on_model, SUBSCRIPTION_QOS[values["model_qos"]])
-        self.create_subscription(PointCloud2, "data", self._on_data, SUBSCRIPTION_QOS[values["data_qos"]])
+        # With the `bag` parameter the clouds come from a bag instead of subscriptions (replay.py).
+        replay = declare_replay_parameters(self)
+        self._replay = None if replay is None else BagReplay(self, replay, self._pipeline, self.publish_outcome)
+        if self._replay is None:
+            self.create_subscription(PointCloud2, "model", self._on_model, SUBSCRIPTION_QOS[values["model_qos"]])
+            self.create_subscription(PointCloud2, "data", self._on_data, SUBSCRIPTION_QOS[values["data_qos"]])
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
@@ -92,6 +97,8 @@ class RegistrationNode(Node):
         self._stopping = threading.Event()
         self._worker = threading.Thread(target=self._work, name="frisicp-registration", daemon=True)
         self._worker.start()
+        if self._replay is not None:
+            self._replay.start()
         self.get_logger().info(
             f"registering '{self.resolve_topic_name('data')}' onto '{self.resolve_topic_name('model')}'"
             f" ({settings.pairing}, {settings.dims}-D, max_points {settings.max_points or 'unlimited'})")
@@ -212,6 +219,8 @@ class RegistrationNode(Node):
         """Stop the worker before the publishers it uses are destroyed."""
         self._stopping.set()
         self._slot.close()
+        if self._replay is not None:
+            self._replay.stop(_WORKER_JOIN_SEC)
         if self._worker.is_alive() and threading.current_thread() is not self._worker:
             self._worker.join(_WORKER_JOIN_SEC)
         super().destroy_node()
