@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo test bench bench-quick bench-paper bench-paper-quick clean
+.PHONY: setup demo test bench bench-quick bench-paper bench-paper-quick bench-node clean
 
 $(STAMP): setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
@@ -34,6 +34,10 @@ bench-paper: $(STAMP)
 # The CI subset (< 2 min): keeps the benchmark code working; writes build/bench-quick/.
 bench-paper-quick: $(STAMP)
 	OMP_NUM_THREADS=1 $(BIN)/frisicp bench --quick
+
+# register_node at 10 Hz with 100k-point clouds (docs/node.md); DURATION=300 for the growth check.
+bench-node: $(STAMP)
+	$(BIN)/python benchmarks/node_latency.py --duration $(or $(DURATION),60)
 
 clean:
 	rm -rf $(VENV) build install log *.egg-info

@@ -191,6 +191,7 @@ def main() -> int:
         "rss_first_quarter_mib": round(float(np.mean([kib for _, kib in memory[:quarter]])) / 1024, 1),
         "rss_last_quarter_mib": round(float(np.mean([kib for _, kib in memory[-quarter:]])) / 1024, 1),
         "rss_max_mib": round(max(kib for _, kib in memory) / 1024, 1),
+        "rss_series_mib": [(round(t), round(kib / 1024, 1)) for t, kib in memory],
         "node_exit_code": node.returncode,
         "node_traceback": "Traceback" in node_log,
     }

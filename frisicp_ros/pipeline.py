@@ -187,9 +187,12 @@ class RegistrationPipeline:
         initial = self._previous if settings.warm_start else None
         try:
             result = register(data_points, model_points, settings.registration_config(initial))
-        except ValueError as err:  # degenerate geometry, too few points
+        except Exception as err:  # noqa: BLE001 - a live node must outlive any one pair
+            # ValueError: degenerate geometry, too few points. Anything else is a core bug; it is
+            # still reported per pair (with its type) instead of killing the node's worker.
             self._previous = None
-            return replace(outcome, rejection=f"registration: {err}", rejected_input="pair",
+            reason = str(err) if isinstance(err, ValueError) else f"unexpected {type(err).__name__}: {err}"
+            return replace(outcome, rejection=f"registration: {reason}", rejected_input="pair",
                            timings=Timings(converted - started, time.perf_counter() - converted))
         timings = Timings(converted - started, time.perf_counter() - converted)
         # A diverged estimate would poison the next start: only a converged one is kept.
