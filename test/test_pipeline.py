@@ -161,3 +161,22 @@ def test_rejected_outcome_has_no_outputs():
     outcome = RegistrationPipeline().process(*scene(100)[:1], cloud(np.full((5, 3), np.nan), "lidar", 1))
     with pytest.raises(ValueError, match="no outputs"):
         build_outputs(outcome, rosbags_message_types())
+
+
+def test_2d_outputs_are_a_rotation_about_z_and_a_3x3_matrix():
+    types = rosbags_message_types()
+    data = closed_contour(600)
+    truth = Similarity(2.0, axis_rotation(2, 30.0), np.array([1.0, -1.0]))
+    zeros = np.zeros((600, 1))
+    outcome = RegistrationPipeline(PipelineSettings(dims=2)).process(
+        cloud(np.hstack([truth.apply(data), zeros]), "map", 10), cloud(np.hstack([data, zeros + 5.0]), "scan", 20))
+    messages = build_outputs(outcome, types, tuple(OUTPUT_TOPICS))
+    q = messages["transform"].transform.rotation
+    assert (q.x, q.y) == (0.0, 0.0) and np.degrees(2 * np.arctan2(q.z, q.w)) == pytest.approx(30.0, abs=0.05)
+    assert messages["transform"].transform.translation.z == 0.0
+    matrix = messages["similarity"]
+    assert [(d.size, d.stride) for d in matrix.layout.dim] == [(3, 9), (3, 3)]
+    np.testing.assert_allclose(matrix.data.reshape(3, 3), truth.matrix(), atol=2e-3)
+    aligned = np.frombuffer(messages["aligned"].data, np.float32).reshape(-1, 3)
+    np.testing.assert_allclose(aligned[:, :2], truth.apply(data), atol=1e-2)
+    assert np.all(aligned[:, 2] == 5.0)  # 2-D mode leaves z alone
