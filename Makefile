@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo test bench bench-quick bench-paper bench-paper-quick bench-node clean
+.PHONY: setup demo test bench bench-quick bench-paper bench-paper-quick bench-node bench-bag clean
 
 $(STAMP): setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
@@ -38,6 +38,10 @@ bench-paper-quick: $(STAMP)
 # register_node at 10 Hz with 100k-point clouds (docs/node.md); DURATION=300 for the growth check.
 bench-node: $(STAMP)
 	$(BIN)/python benchmarks/node_latency.py --duration $(or $(DURATION),60)
+
+# frisicp bag throughput, --jobs 1 and 2, on 200 pairs of 30k-point clouds (docs/bag.md); PAIRS=20 for a look.
+bench-bag: $(STAMP)
+	$(BIN)/python benchmarks/bag_throughput.py --pairs $(or $(PAIRS),200)
 
 clean:
 	rm -rf $(VENV) build install log *.egg-info

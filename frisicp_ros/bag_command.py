@@ -17,6 +17,7 @@ from collections.abc import Iterator
 from contextlib import closing
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 from tqdm import tqdm
 
@@ -128,6 +129,8 @@ def check_arguments(args: argparse.Namespace, settings: PipelineSettings) -> Non
         raise CommandError(f"--jobs must be >= 1, got {args.jobs}")
     if settings.warm_start and args.jobs > 1:
         raise CommandError("--warm-start chains every pair to the one before it: it needs --jobs 1")
+    if args.out_bag and Path(args.out_bag).exists():  # before --out is truncated or the bag read
+        raise CommandError(f"{args.out_bag} exists already; choose a new --out-bag folder")
 
 
 def run(args: argparse.Namespace) -> int:

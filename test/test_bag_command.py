@@ -296,9 +296,9 @@ def test_argument_mistakes_are_refused_before_reading(capsys, bags, tmp_path):
     assert_clean_failure(code, err, "overlap")
     existing = tmp_path / "exists"
     existing.mkdir()
-    code, out, err = run_cli(capsys, *bag_args(bag, "--out-bag", existing))
+    code, out, err = run_cli(capsys, *bag_args(bag, "--out-bag", existing, "--out", tmp_path / "never.jsonl"))
     assert_clean_failure(code, err, "exists already")
-    assert out == ""
+    assert out == "" and not (tmp_path / "never.jsonl").exists()
 
 
 def write_bag_with_corrupt_message(path: Path, scenario: Scenario, corrupt_at: int) -> Path:
@@ -383,3 +383,14 @@ def test_ctrl_c_keeps_every_result_and_finishes_the_result_bag(tmp_path):
 
     with AnyReader([out_bag]) as reader:
         assert reader.topics["/frisicp/transform"].msgcount == len(kept)
+
+
+def test_a_bag_without_pairs_says_why(capsys, tmp_path):
+    model = bumpy_surface(200, seed=1)
+    records = [CloudRecord(DATA_TOPIC, 10, 10, DATA_FRAME, model), CloudRecord(MODEL_TOPIC, 10**9, 10**9, MODEL_FRAME, model)]
+    bag = write_rosbag2(tmp_path / "late_model", records, "sqlite3")
+    code, out, err = run_cli(capsys, *bag_args(bag))
+    assert code == 0 and out == ""
+    assert "pairs 0" in err and "every data cloud came before the first model cloud" in err
+    code, out, err = run_cli(capsys, *bag_args(bag, "--pairing", "synchronized"))
+    assert "no model and data header stamps within --sync-tolerance" in err
