@@ -10,8 +10,10 @@ stderr. Exit codes: 0 done, 1 the bag stopped being readable part-way (results s
 from __future__ import annotations
 
 import argparse
+import signal
 import statistics
 import sys
+import threading
 import time
 from collections.abc import Iterator
 from contextlib import closing
@@ -122,6 +124,31 @@ class RunStats:
         return text
 
 
+class InterruptRequest:
+    """Ctrl-C as a request: the pair in hand is finished and written to every output (so the
+    JSONL and the result bag hold the same pairs), then the run stops. A second Ctrl-C stops at
+    once. Only in the main thread, where Python delivers signals; elsewhere Ctrl-C is as usual.
+    """
+
+    def __init__(self) -> None:
+        self.requested = False
+        self._previous: object = None
+
+    def __enter__(self) -> InterruptRequest:
+        if threading.current_thread() is threading.main_thread():
+            self._previous = signal.signal(signal.SIGINT, self._on_interrupt)
+        return self
+
+    def _on_interrupt(self, signum: int, frame: object) -> None:
+        if self.requested:
+            raise KeyboardInterrupt
+        self.requested = True
+
+    def __exit__(self, *exc_info: object) -> None:
+        if self._previous is not None:
+            signal.signal(signal.SIGINT, self._previous)
+
+
 def check_arguments(args: argparse.Namespace, settings: PipelineSettings) -> None:
     if args.model_topic == args.data_topic:
         raise CommandError("--model-topic and --data-topic must be different topics")
@@ -160,8 +187,9 @@ def process_bag(args: argparse.Namespace, settings: PipelineSettings, reading: P
     code = 0
     try:
         pairs: Iterator[BagPair] = iter(reading)
-        # closing(): an interrupt in this loop body must still stop the workers right away.
-        with closing(ordered_map(PairRegistrar(settings), pairs, args.jobs)) as registered:
+        # closing(): leaving the loop early must stop the workers right away.
+        with InterruptRequest() as interrupt, closing(
+                ordered_map(PairRegistrar(settings), pairs, args.jobs)) as registered:
             for pair, outcome in registered:
                 outcome = replace(outcome, data_msg=pair.data.cloud)
                 results.write(pair_record(pair, outcome))
@@ -169,6 +197,8 @@ def process_bag(args: argparse.Namespace, settings: PipelineSettings, reading: P
                     result_bag.write(pair.data.bag_ns, build_outputs(outcome, result_bag.types, topics))
                 stats.add(pair, outcome)
                 progress.update(pair.data.ordinal + 1 - progress.n)
+                if interrupt.requested:
+                    raise KeyboardInterrupt
         if reading.stopped is not None:
             stopped, code = reading.stopped, 1
         else:
