@@ -201,12 +201,12 @@ uint32 count
 """
 
 
-def write_mcap_ros2(path: Path, records: Sequence[CloudRecord]) -> Path:
+def write_mcap_ros2(path: Path, records: Sequence[CloudRecord], chunk_size: int = 1024 * 1024) -> Path:
     """A bare ``.mcap`` file written by Foxglove's mcap-ros2-support (no metadata.yaml)."""
     from mcap_ros2.writer import Writer
 
     with path.open("wb") as stream:
-        writer = Writer(stream)
+        writer = Writer(stream, chunk_size=chunk_size)
         schema = writer.register_msgdef("sensor_msgs/msg/PointCloud2", POINTCLOUD2_MSGDEF)
         for record in records:
             message = {

@@ -342,6 +342,23 @@ def test_corrupt_message_mid_bag_keeps_earlier_results_and_says_where(capsys, sc
         assert reader.topics["/frisicp/transform"].msgcount == 2
 
 
+def test_damage_found_while_reading_keeps_earlier_results_and_says_where(capsys, scenario, tmp_path):
+    """A flipped byte in a late chunk of an independently written MCAP (one message per chunk):
+    the chunk's CRC fails only when the reading gets there."""
+    bag = write_mcap_ros2(tmp_path / "damaged.mcap", scenario.records, chunk_size=1000)
+    raw = bytearray(bag.read_bytes())
+    at = int(len(raw) * 0.6)
+    raw[at:at + 8] = bytes(byte ^ 0xA5 for byte in raw[at:at + 8])
+    bag.write_bytes(raw)
+    code, out, err = run_cli(capsys, *bag_args(bag, "--no-progress"))
+    assert code == 1 and "Traceback" not in err
+    assert "the bag is damaged after message" in err and "Chunk checksum mismatch" in err, err
+    records = read_jsonl(out)
+    assert 1 <= len(records) < 4 and f"{len(records)} results kept in stdout" in err
+    for record in records:
+        assert_matches_truth(record, scenario.truth[record["stamp_ns"]])
+
+
 def test_malformed_cloud_is_reported_as_a_rejected_pair_and_the_run_goes_on(capsys, tmp_path):
     model = bumpy_surface(POINTS, seed=1)
     truth = truth_for(0)
