@@ -207,6 +207,8 @@ def process_bag(args: argparse.Namespace, settings: PipelineSettings, reading: P
         stopped, code = "interrupted", 130
     except BrokenProcessPool:
         stopped, code = "a worker process died (out of memory?)", 1
+    except OutputError as err:  # a full disk, a closed pipe: what was written stays
+        stopped, code = str(err), 1
     finally:
         progress.close()
         results.close()

@@ -63,8 +63,16 @@ class JsonLines:
         self.lines = 0
 
     def write(self, record: Mapping[str, object]) -> None:
-        self.stream.write(json.dumps(record) + "\n")
-        self.stream.flush()
+        try:
+            self.stream.write(json.dumps(record) + "\n")
+            self.stream.flush()
+        except BrokenPipeError:
+            # `frisicp bag ... | head`: the reader left. Point stdout at /dev/null so Python's own
+            # flush at exit does not fail again, and let the caller stop like an interrupt.
+            os.dup2(os.open(os.devnull, os.O_WRONLY), self.stream.fileno())
+            raise OutputError("the reader of the results closed the pipe") from None
+        except OSError as err:
+            raise OutputError(f"cannot write {self.target}: {err.strerror or err}") from None
         self.lines += 1
 
     def close(self) -> None:
@@ -108,9 +116,12 @@ class ResultBag:
         self.pairs = 0
 
     def write(self, bag_ns: int, messages: Mapping[str, Any]) -> None:
-        for suffix, message in messages.items():
-            raw = self.typestore.serialize_cdr(message, OUTPUT_TOPICS[suffix])
-            self.writer.write(self.connections[suffix], bag_ns, raw)
+        try:
+            for suffix, message in messages.items():
+                raw = self.typestore.serialize_cdr(message, OUTPUT_TOPICS[suffix])
+                self.writer.write(self.connections[suffix], bag_ns, raw)
+        except OSError as err:  # a full disk: the pairs written so far stay readable after close
+            raise OutputError(f"cannot write {self.temporary}: {err.strerror or err}") from None
         self.pairs += 1
 
     def close(self) -> Path:

@@ -413,3 +413,20 @@ def test_a_bag_without_pairs_says_why(capsys, tmp_path):
     assert "pairs 0" in err and "every data cloud came before the first model cloud" in err
     code, out, err = run_cli(capsys, *bag_args(bag, "--pairing", "synchronized"))
     assert "no model and data header stamps within --sync-tolerance" in err
+
+
+def test_a_closed_results_pipe_stops_cleanly_and_keeps_the_result_bag(bags, tmp_path):
+    """`frisicp bag ... | head -0`: no BrokenPipeError traceback, the result bag is finished."""
+    out_bag = tmp_path / "piped"
+    command = [str(Path(sys.executable).parent / "frisicp"), *bag_args(bags["rosbags-mcap"], "--out-bag",
+                                                                      str(out_bag), "--no-progress")]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    process.stdout.close()  # the reader is gone before the first result (start-up takes longer)
+    err = process.stderr.read()
+    assert process.wait(timeout=60) == 1
+    assert "closed the pipe" in err and "0 results kept" in err, err
+    assert "Traceback" not in err and "Exception ignored" not in err, err
+    from rosbags.highlevel import AnyReader
+
+    with AnyReader([out_bag]) as reader:  # finished and readable, though empty
+        assert reader.topics["/frisicp/transform"].msgcount == 0
