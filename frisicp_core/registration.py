@@ -43,6 +43,8 @@ from .similarity import FloatArray, Similarity
 # enough for the wrong ones to settle into their (higher-error) local minima.
 _SCREENING_ITERATIONS = 10
 _SCREENING_POINTS = 400
+# First iteration of a level at which Anderson acceleration may propose steps.
+_ACCELERATE_FROM = 3
 
 
 @dataclass
@@ -169,7 +171,10 @@ class _Solver:
                     pairs = self.correspond(level, sim)
                     rms = _rms(pairs.forward_sq, pairs.backward_sq)
                 break
-            proposal = accelerator.propose(sim, step) if accelerator else None
+            # Extrapolate only once a level crawls: on levels that converge in a couple of
+            # steps, a rejected proposal would cost a wasted correspondence pass.
+            proposal = (accelerator.propose(sim, step)
+                        if accelerator and iterations >= _ACCELERATE_FROM else None)
             if proposal is not None:
                 proposal_pairs = self.correspond(level, proposal)
                 proposal_rms = _rms(proposal_pairs.forward_sq, proposal_pairs.backward_sq)
