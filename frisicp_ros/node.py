@@ -8,7 +8,14 @@ publishes ``~/transform``, ``~/scale``, ``~/rms``, ``~/similarity``, ``~/aligned
 
 from __future__ import annotations
 
-import sys
+import os
+
+# One OpenMP thread for pykdtree unless the user chose otherwise: most queries are small, and on
+# a 2-core machine the thread overhead made registration 1.3-1.5x slower (docs/node.md,
+# docs/core_speed_omp1.md). It must be set before pykdtree loads, as libgomp reads it at load.
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import sys  # noqa: E402 - after the OpenMP default above
 import threading
 import time
 from dataclasses import dataclass
