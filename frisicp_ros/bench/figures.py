@@ -27,7 +27,7 @@ COLOURS = {"frisicp": "tab:red", "frisicp-robust": "tab:orange", "icp": "tab:blu
            "scale-icp": "tab:green", "bounded-icp": "tab:purple", "open3d": "tab:gray"}
 MODEL_COLOUR, DATA_COLOUR = "tab:red", "tab:blue"  # the paper's colours: model red, data blue
 # Points drawn per set in 3-D pictures: enough to show the shape, few enough for small files.
-MAX_DRAWN_POINTS = 2500
+MAX_DRAWN_POINTS = 1800
 DPI = 90
 
 
