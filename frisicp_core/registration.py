@@ -209,13 +209,17 @@ def _initial_guesses(data: FloatArray, model: FloatArray, config: RegistrationCo
     if config.initial is not None:
         if config.initial.dim != data.shape[1]:
             raise ValueError(f"initial similarity is {config.initial.dim}-D but the points are {data.shape[1]}-D")
-        return [config.initial]
-    if config.initialization is Initialization.IDENTITY:
-        return [Similarity.identity(data.shape[1])]
-    guesses = moment_guesses(data, model, principal_axes=config.initialization is Initialization.PRINCIPAL_AXES)
-    if config.method is Method.ICP:
-        guesses = [Similarity(1.0, g.rotation, model.mean(axis=0) - g.rotation @ data.mean(axis=0)) for g in guesses]
-    elif scale_bounds is not None:
+        guesses = [config.initial]
+    elif config.initialization is Initialization.IDENTITY:
+        guesses = [Similarity.identity(data.shape[1])]
+    else:
+        guesses = moment_guesses(data, model, principal_axes=config.initialization is Initialization.PRINCIPAL_AXES)
+        if config.method is Method.ICP:
+            guesses = [Similarity(1.0, g.rotation, model.mean(axis=0) - g.rotation @ data.mean(axis=0))
+                       for g in guesses]
+    if scale_bounds is not None:
+        # Du's method must start inside its bounds: from outside, the first clipped step can raise
+        # the error, which the loop would take for convergence after one iteration.
         guesses = [Similarity(float(np.clip(g.scale, *scale_bounds)), g.rotation, g.translation) for g in guesses]
     return guesses
 

@@ -207,3 +207,12 @@ def test_noisy_resampled_cold_starts_never_pick_a_flipped_pose():
         sample = bumpy_surface(5000, seed=int(rng.integers(1 << 30)))
         data = truth.inverse().apply(sample) + rng.normal(scale=0.005, size=sample.shape)
         assert errors(register(data, model).similarity, truth)[0] < 1.0, f"t = {0.5 * k}"
+
+
+def test_bounded_icp_from_the_paper_start_iterates_inside_its_bounds():
+    """Regression: s = 1 lay outside Du's bounds at s_true = 10, and the run stopped after 1 iteration."""
+    model = SHAPES["2-D contour"]
+    data, truth = scaled_copy(model, 0.1)
+    result = register(data, model, RegistrationConfig.paper(Method.BOUNDED_ICP))
+    assert result.iterations[0] > 1
+    assert errors(result.similarity, truth)[1] < 0.005
