@@ -29,7 +29,7 @@ import numpy as np
 from pykdtree.kdtree import KDTree
 from scipy.spatial import cKDTree
 
-from frisicp_core import RegistrationConfig, Similarity, register, rotation_angle
+from frisicp_core import Similarity, register, rotation_angle
 from frisicp_ros.cloud_files import read_points
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import signal
 import subprocess
 import sys
 import threading
@@ -64,6 +63,7 @@ def main() -> int:
     from sensor_msgs.msg import PointCloud2
 
     from frisicp_core import Similarity, bumpy_surface
+    from frisicp_ros.demo import stop_node
     from frisicp_ros.outputs import rclpy_message_types
     from frisicp_ros.pointcloud2 import points_to_parts
 
@@ -115,7 +115,8 @@ def main() -> int:
     bench.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(bench)
-    threading.Thread(target=executor.spin, daemon=True).start()
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
     model_pub.publish(model)
 
     # Warm-up: wait for the first answer (node start, discovery, first cold registration).
@@ -156,13 +157,9 @@ def main() -> int:
     time.sleep(3.0)  # the last answers and one more diagnostics message
     memory.append((time.monotonic() - start, rss_kib(node.pid)))
 
-    node.send_signal(signal.SIGINT)
-    try:
-        _, node_log = node.communicate(timeout=30)
-    except subprocess.TimeoutExpired:
-        node.kill()
-        _, node_log = node.communicate()
+    node_log = stop_node(node, timeout=30)
     executor.shutdown(timeout_sec=5)
+    spinner.join(timeout=5)  # a spin still inside rcl at interpreter exit aborts the process
     bench.destroy_node()
     rclpy.shutdown(context=context)
 

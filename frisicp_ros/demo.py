@@ -76,6 +76,17 @@ def register_node_command(max_points: int) -> list[str]:
             "-p", "model_qos:=transient_local", "-p", f"max_points:={max_points}", "-p", "data_frame:=demo_sensor"]
 
 
+def stop_node(node: subprocess.Popen, timeout: float) -> str:
+    """SIGINT a node started with stderr=PIPE, as Ctrl-C would; kill it if it outlives ``timeout``.
+    Returns what it wrote to stderr."""
+    node.send_signal(signal.SIGINT)
+    try:
+        return node.communicate(timeout=timeout)[1]
+    except subprocess.TimeoutExpired:
+        node.kill()
+        return node.communicate()[1]
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     env = isolate_dds(args.domain_id)
@@ -88,12 +99,7 @@ def main(argv: list[str] | None = None) -> int:
         registered, sent = [], 0
         print("\ninterrupted")
     finally:
-        node.send_signal(signal.SIGINT)
-        try:
-            _, node_log = node.communicate(timeout=20)
-        except subprocess.TimeoutExpired:
-            node.kill()
-            _, node_log = node.communicate()
+        node_log = stop_node(node, timeout=20)
     clean = node.returncode == 0 and "Traceback" not in node_log
     print_summary(registered, sent, clean)
     if not clean:
@@ -180,6 +186,7 @@ def run_stream(args: argparse.Namespace) -> tuple[list[tuple[Similarity, Similar
             time.sleep(0.01)
     finally:
         executor.shutdown(timeout_sec=5)
+        spinner.join(timeout=5)  # a spin still inside rcl at interpreter exit aborts the process
         publisher_node.destroy_node()
         rclpy.shutdown(context=context)
     print_new_rows(order, sent, transforms, arrival, scales, rms, lock, start, printed)

@@ -332,7 +332,7 @@ def test_corrupt_message_mid_bag_keeps_earlier_results_and_says_where(capsys, sc
     assert code == 1
     assert "Traceback" not in err
     bad = scenario.data_records()[2]
-    assert f"stopped after pair 1" in err and f"{DATA_TOPIC} at bag time {bad.bag_ns} ns" in err, err
+    assert "stopped after pair 1" in err and f"{DATA_TOPIC} at bag time {bad.bag_ns} ns" in err, err
     assert "cannot be decoded" in err and "2 results kept" in err
     records = read_jsonl(results.read_text())
     assert [r["stamp_ns"] for r in records] == [d.bag_ns for d in scenario.data_records()[:2]]
