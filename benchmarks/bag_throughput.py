@@ -55,7 +55,7 @@ def write_bag(path: Path, pairs: int, points: int) -> None:
         model_conn = writer.add_connection(MODEL_TOPIC, CLOUD_TYPE, typestore=typestore)
         data_conn = writer.add_connection(DATA_TOPIC, CLOUD_TYPE, typestore=typestore)
 
-        def write(connection, cloud_points: np.ndarray, stamp_ns: int, frame: str) -> None:  # noqa: ANN001
+        def write(connection, cloud_points: np.ndarray, stamp_ns: int, frame: str) -> None:
             msg = types.point_cloud(points_to_parts(cloud_points), types.header(stamp_ns, frame))
             writer.write(connection, stamp_ns, typestore.serialize_cdr(msg, CLOUD_TYPE))
 
@@ -71,22 +71,46 @@ def write_bag(path: Path, pairs: int, points: int) -> None:
 
 def run(bag: Path, jobs: int, workdir: Path, env_extra: dict[str, str]) -> dict[str, float]:
     out, out_bag = workdir / f"jobs{jobs}.jsonl", workdir / f"out_jobs{jobs}_{time.monotonic_ns()}"
-    command = [str(Path(sys.executable).parent / "frisicp"), "bag", str(bag), "--model-topic", MODEL_TOPIC,
-               "--data-topic", DATA_TOPIC, "--max-points", "0", "--jobs", str(jobs), "--out", str(out),
-               "--out-bag", str(out_bag), "--no-progress"]
+    command = [
+        str(Path(sys.executable).parent / "frisicp"),
+        "bag",
+        str(bag),
+        "--model-topic",
+        MODEL_TOPIC,
+        "--data-topic",
+        DATA_TOPIC,
+        "--max-points",
+        "0",
+        "--jobs",
+        str(jobs),
+        "--out",
+        str(out),
+        "--out-bag",
+        str(out_bag),
+        "--no-progress",
+    ]
     started = time.perf_counter()
     subprocess.run(command, check=True, env={**os.environ, **env_extra}, stderr=subprocess.DEVNULL)
     wall = time.perf_counter() - started
     load = os.getloadavg()[0]  # the last minute: other work on the machine skews the figures
     records = [json.loads(line) for line in out.read_text().splitlines()]
     core = sum(r["seconds"] for r in records)
-    return {"jobs": jobs, "pairs": len(records), "wall_seconds": wall, "pairs_per_second": len(records) / wall,
-            "core_seconds": core, "converged": sum(r["converged"] for r in records),
-            "env": " ".join(f"{k}={v}" for k, v in env_extra.items()) or "default", "load_average_1min": load}
+    return {
+        "jobs": jobs,
+        "pairs": len(records),
+        "wall_seconds": wall,
+        "pairs_per_second": len(records) / wall,
+        "core_seconds": core,
+        "converged": sum(r["converged"] for r in records),
+        "env": " ".join(f"{k}={v}" for k, v in env_extra.items()) or "default",
+        "load_average_1min": load,
+    }
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--pairs", type=int, default=200)
     parser.add_argument("--points", type=int, default=30000)
     parser.add_argument("--json", type=Path, help="also write the figures here")
@@ -96,22 +120,29 @@ def main() -> int:
         workdir = Path(tmp)
         bag = workdir / "input"
         write_bag(bag, args.pairs, args.points)
-        runs = [run(bag, 1, workdir, {}), run(bag, 2, workdir, {}),
-                # --jobs 1 with pykdtree's OpenMP on one thread, like each --jobs 2 worker
-                run(bag, 1, workdir, {"OMP_NUM_THREADS": "1"}),
-                # --jobs 2 without the bag mode's OMP_NUM_THREADS=1 per worker
-                run(bag, 2, workdir, {"OMP_NUM_THREADS": cores})]
+        runs = [
+            run(bag, 1, workdir, {}),
+            run(bag, 2, workdir, {}),
+            # --jobs 1 with pykdtree's OpenMP on one thread, like each --jobs 2 worker
+            run(bag, 1, workdir, {"OMP_NUM_THREADS": "1"}),
+            # --jobs 2 without the bag mode's OMP_NUM_THREADS=1 per worker
+            run(bag, 2, workdir, {"OMP_NUM_THREADS": cores}),
+        ]
     single = runs[0]
     outside = 1 - single["core_seconds"] / single["wall_seconds"]
     print(f"machine: {platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}")
     print(f"bag: {args.pairs} pairs of {args.points}-point clouds (rosbag2, mcap)")
     for result in runs:
-        print(f"--jobs {result['jobs']} ({result['env']}): {result['pairs_per_second']:.3f} pairs/s, "
-              f"wall {result['wall_seconds']:.1f} s, core {result['core_seconds']:.1f} s, "
-              f"converged {result['converged']}/{result['pairs']}, load average at the end {result['load_average_1min']:.1f}")
-    print(f"speed-up --jobs 2 / --jobs 1: {runs[1]['pairs_per_second'] / single['pairs_per_second']:.2f}x; "
-          f"against --jobs 1 with OMP_NUM_THREADS=1: {runs[1]['pairs_per_second'] / runs[2]['pairs_per_second']:.2f}x; "
-          f"--jobs 2 with {cores} OMP threads per worker: {runs[3]['pairs_per_second'] / single['pairs_per_second']:.2f}x")
+        print(
+            f"--jobs {result['jobs']} ({result['env']}): {result['pairs_per_second']:.3f} pairs/s, "
+            f"wall {result['wall_seconds']:.1f} s, core {result['core_seconds']:.1f} s, "
+            f"converged {result['converged']}/{result['pairs']}, load average at the end {result['load_average_1min']:.1f}"
+        )
+    print(
+        f"speed-up --jobs 2 / --jobs 1: {runs[1]['pairs_per_second'] / single['pairs_per_second']:.2f}x; "
+        f"against --jobs 1 with OMP_NUM_THREADS=1: {runs[1]['pairs_per_second'] / runs[2]['pairs_per_second']:.2f}x; "
+        f"--jobs 2 with {cores} OMP threads per worker: {runs[3]['pairs_per_second'] / single['pairs_per_second']:.2f}x"
+    )
     print(f"time outside frisicp_core.register at --jobs 1: {100 * outside:.1f} %")
     if args.json:
         args.json.write_text(json.dumps({"runs": runs, "outside_core_share": outside}, indent=2))

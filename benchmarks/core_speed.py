@@ -78,13 +78,18 @@ def main() -> int:
     parser.add_argument("--out", type=Path, default=ROOT / "docs" / "core_speed.md")
     args = parser.parse_args()
     if not BUNNY.exists():
-        print(f"core_speed: {BUNNY} is absent; this benchmark needs ../shared/data beside the repo", file=sys.stderr)
+        print(
+            f"core_speed: {BUNNY} is absent; this benchmark needs ../shared/data beside the repo",
+            file=sys.stderr,
+        )
         return 2
 
     model = read_points(BUNNY)
     rows = []
-    print(f"{'s':>4} {'register ms':>12} {'pass pykd':>10} {'pass ckd':>9} {'ratio':>6} "
-          f"{'aligned pass':>12} {'ratio':>6} {'rot deg':>9} {'scale err':>9}")
+    print(
+        f"{'s':>4} {'register ms':>12} {'pass pykd':>10} {'pass ckd':>9} {'ratio':>6} "
+        f"{'aligned pass':>12} {'ratio':>6} {'rot deg':>9} {'scale err':>9}"
+    )
     for scale in SCALES:
         forward = Similarity(scale, rotation_10deg(), [0.01, -0.02, 0.015])
         data = forward.apply(model)
@@ -100,28 +105,45 @@ def main() -> int:
         rot = float(np.rad2deg(rotation_angle(estimate.rotation.T @ truth.rotation)))
         scale_error = abs(estimate.scale / truth.scale - 1)
         reference = min(pykd, ckd)
-        row = dict(s=scale, register_ms=reg * 1e3, pass_pykdtree_ms=pykd * 1e3, pass_ckdtree_ms=ckd * 1e3,
-                   ratio=reg / reference, aligned_pass_ms=aligned * 1e3, aligned_ratio=reg / aligned,
-                   rotation_error_deg=rot, scale_error=scale_error, startup_ms=startup_ms,
-                   levels_ms=levels_ms, final_level_iterations=results[-1].iterations[-1],
-                   accurate=rot < 0.5 and scale_error < 0.005)
+        row = dict(
+            s=scale,
+            register_ms=reg * 1e3,
+            pass_pykdtree_ms=pykd * 1e3,
+            pass_ckdtree_ms=ckd * 1e3,
+            ratio=reg / reference,
+            aligned_pass_ms=aligned * 1e3,
+            aligned_ratio=reg / aligned,
+            rotation_error_deg=rot,
+            scale_error=scale_error,
+            startup_ms=startup_ms,
+            levels_ms=levels_ms,
+            final_level_iterations=results[-1].iterations[-1],
+            accurate=rot < 0.5 and scale_error < 0.005,
+        )
         rows.append(row)
-        print(f"{scale:4.1f} {reg * 1e3:12.1f} {pykd * 1e3:10.1f} {ckd * 1e3:9.1f} {row['ratio']:6.2f} "
-              f"{aligned * 1e3:12.1f} {row['aligned_ratio']:6.2f} {rot:9.2e} {scale_error:9.1e}", flush=True)
+        print(
+            f"{scale:4.1f} {reg * 1e3:12.1f} {pykd * 1e3:10.1f} {ckd * 1e3:9.1f} {row['ratio']:6.2f} "
+            f"{aligned * 1e3:12.1f} {row['aligned_ratio']:6.2f} {rot:9.2e} {scale_error:9.1e}",
+            flush=True,
+        )
 
-    med = {key: statistics.median(r[key] for r in rows)
-           for key in ("register_ms", "pass_pykdtree_ms", "pass_ckdtree_ms", "aligned_pass_ms", "startup_ms")}
+    med = {
+        key: statistics.median(r[key] for r in rows)
+        for key in ("register_ms", "pass_pykdtree_ms", "pass_ckdtree_ms", "aligned_pass_ms", "startup_ms")
+    }
     final_level = statistics.median(r["levels_ms"][-1] for r in rows)
     final_iterations = statistics.median(r["final_level_iterations"] for r in rows)
     worst = max(r["ratio"] for r in rows)
     worst_aligned = max(r["aligned_ratio"] for r in rows)
     all_accurate = all(r["accurate"] for r in rows)
-    summary = (f"median register {med['register_ms']:.1f} ms; median pass: pykdtree {med['pass_pykdtree_ms']:.1f} ms, "
-               f"cKDTree {med['pass_ckdtree_ms']:.1f} ms, aligned pykdtree {med['aligned_pass_ms']:.1f} ms; "
-               f"worst ratio register/pass {worst:.2f} (target <= 5: {'met' if worst <= 5 else 'MISSED'}); "
-               f"worst ratio register/aligned pass {worst_aligned:.2f}; all 15 scales accurate: {all_accurate}; "
-               f"median breakdown of one register: start-up incl. hypothesis screening {med['startup_ms']:.0f} ms, "
-               f"full-resolution level {final_level:.0f} ms ({final_iterations:.0f} iterations + 1 final pass)")
+    summary = (
+        f"median register {med['register_ms']:.1f} ms; median pass: pykdtree {med['pass_pykdtree_ms']:.1f} ms, "
+        f"cKDTree {med['pass_ckdtree_ms']:.1f} ms, aligned pykdtree {med['aligned_pass_ms']:.1f} ms; "
+        f"worst ratio register/pass {worst:.2f} (target <= 5: {'met' if worst <= 5 else 'MISSED'}); "
+        f"worst ratio register/aligned pass {worst_aligned:.2f}; all 15 scales accurate: {all_accurate}; "
+        f"median breakdown of one register: start-up incl. hypothesis screening {med['startup_ms']:.0f} ms, "
+        f"full-resolution level {final_level:.0f} ms ({final_iterations:.0f} iterations + 1 final pass)"
+    )
     print(summary)
     write_report(args.out, rows, summary, args.repeats)
     return 0
@@ -142,9 +164,11 @@ def write_report(path: Path, rows: list[dict], summary: str, repeats: int) -> No
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in rows:
-        lines.append(f"| {r['s']:.1f} | {r['register_ms']:.1f} | {r['pass_pykdtree_ms']:.1f} | {r['pass_ckdtree_ms']:.1f} | "
-                     f"{r['ratio']:.2f} | {r['aligned_pass_ms']:.1f} | {r['aligned_ratio']:.2f} | "
-                     f"{r['rotation_error_deg']:.1e} | {r['scale_error']:.1e} |")
+        lines.append(
+            f"| {r['s']:.1f} | {r['register_ms']:.1f} | {r['pass_pykdtree_ms']:.1f} | {r['pass_ckdtree_ms']:.1f} | "
+            f"{r['ratio']:.2f} | {r['aligned_pass_ms']:.1f} | {r['aligned_ratio']:.2f} | "
+            f"{r['rotation_error_deg']:.1e} | {r['scale_error']:.1e} |"
+        )
     path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text("\n".join(lines) + "\n")
     path.with_suffix(".json").write_text(json.dumps(rows, indent=1) + "\n")

@@ -36,10 +36,16 @@ def parse_args() -> argparse.Namespace:
     parser.add_argument("--rate", type=float, default=10.0, help="data clouds per second (default 10)")
     parser.add_argument("--points", type=int, default=100_000, help="points per data cloud")
     parser.add_argument("--model-points", type=int, default=100_000, help="points in the model cloud")
-    parser.add_argument("--max-points", type=int, default=20_000, help="node parameter max_points (0 = no cap)")
-    parser.add_argument("--data-qos", choices=("reliable", "sensor_data"), default="reliable",
-                        help="QoS of the data stream (publisher and the node's data_qos). Fast DDS loses"
-                             " most 1.6 MB best-effort messages over loopback: see docs/node.md")
+    parser.add_argument(
+        "--max-points", type=int, default=20_000, help="node parameter max_points (0 = no cap)"
+    )
+    parser.add_argument(
+        "--data-qos",
+        choices=("reliable", "sensor_data"),
+        default="reliable",
+        help="QoS of the data stream (publisher and the node's data_qos). Fast DDS loses"
+        " most 1.6 MB best-effort messages over loopback: see docs/node.md",
+    )
     parser.add_argument("--json", type=Path, help="also write the figures here")
     return parser.parse_args()
 
@@ -68,14 +74,33 @@ def main() -> int:
     from frisicp_ros.pointcloud2 import points_to_parts
 
     node = subprocess.Popen(
-        [str(Path(sys.executable).parent / "register_node"), "--ros-args",
-         "-r", "model:=/bench/model", "-r", "data:=/bench/data", "-p", "model_qos:=transient_local",
-         "-p", f"max_points:={args.max_points}", "-p", f"data_qos:={args.data_qos}"],
-        env=dict(os.environ), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        [
+            str(Path(sys.executable).parent / "register_node"),
+            "--ros-args",
+            "-r",
+            "model:=/bench/model",
+            "-r",
+            "data:=/bench/data",
+            "-p",
+            "model_qos:=transient_local",
+            "-p",
+            f"max_points:={args.max_points}",
+            "-p",
+            f"data_qos:={args.data_qos}",
+        ],
+        env=dict(os.environ),
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
 
     types = rclpy_message_types()
-    truth = Similarity(1.3, np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]), np.array([1.0, 2.0, 0.5]))
-    model = types.point_cloud(points_to_parts(bumpy_surface(args.model_points, seed=0)), types.header(0, "map"))
+    truth = Similarity(
+        1.3, np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]]), np.array([1.0, 2.0, 0.5])
+    )
+    model = types.point_cloud(
+        points_to_parts(bumpy_surface(args.model_points, seed=0)), types.header(0, "map")
+    )
     rng = np.random.default_rng(1)
     data_clouds = []  # built before the clock starts: the publisher must keep up with --rate
     for seed in range(5):
@@ -87,10 +112,15 @@ def main() -> int:
     context = rclpy.Context()
     rclpy.init(context=context)
     bench = rclpy.create_node("latency_bench", context=context)
-    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    latched = QoSProfile(
+        depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+    )
     model_pub = bench.create_publisher(PointCloud2, "/bench/model", latched)
-    data_qos = qos_profile_sensor_data if args.data_qos == "sensor_data" else QoSProfile(
-        depth=5, reliability=ReliabilityPolicy.RELIABLE)
+    data_qos = (
+        qos_profile_sensor_data
+        if args.data_qos == "sensor_data"
+        else QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE)
+    )
     data_pub = bench.create_publisher(PointCloud2, "/bench/data", data_qos)
     sent_at: dict[int, float] = {}
     end_to_end: list[float] = []
@@ -172,10 +202,15 @@ def main() -> int:
     figures = {
         "duration_s": round(elapsed, 1),
         "data_qos": args.data_qos,
-        "data_points": args.points, "model_points": args.model_points, "max_points": args.max_points,
+        "data_points": args.points,
+        "model_points": args.model_points,
+        "max_points": args.max_points,
         "input_rate_hz": round(sent / elapsed, 2),
-        "received_by_node_hz": round(float(np.mean([float(d.get("data rate (Hz)", "nan"))
-                                                    for d in diagnostics])), 2) if diagnostics else None,
+        "received_by_node_hz": round(
+            float(np.mean([float(d.get("data rate (Hz)", "nan")) for d in diagnostics])), 2
+        )
+        if diagnostics
+        else None,
         "output_rate_hz": round(answered / elapsed, 2),
         "dropped_pairs": int(last.get("dropped pairs", 0)) - first_dropped,
         "node_latency_p50_ms": float(last.get("latency p50 (ms)", "nan")),

@@ -38,8 +38,13 @@ def main() -> None:
         out.frombytes(raw.data)
         return out
 
-    cases = {"array.array('B') + frombytes": filled_array, "bytes": raw.tobytes,
-             "memoryview": lambda: memoryview(raw), "numpy uint8 array": lambda: raw, "list of int": raw.tolist}
+    cases = {
+        "array.array('B') + frombytes": filled_array,
+        "bytes": raw.tobytes,
+        "memoryview": lambda: memoryview(raw),
+        "numpy uint8 array": lambda: raw,
+        "list of int": raw.tolist,
+    }
     for label, make_value in cases.items():
         try:
             print(f"{label:32s} {best_of(make_value) * 1e3:9.2f} ms")

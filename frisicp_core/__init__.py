@@ -4,13 +4,13 @@ No ROS imports here; the ROS layer lives in ``frisicp_ros``.
 """
 
 from .config import ConvergenceCriteria, Initialization, Method, RegistrationConfig
-from .sampling import downsample
 from .estimate import estimate_similarity
 from .kdtree import NearestNeighbors, nearest
 from .points import as_point_set
 from .registration import register
-from .shapes import bumpy_surface, closed_contour
 from .result import IterationRecord, LevelReport, RegistrationResult
+from .sampling import downsample
+from .shapes import bumpy_surface, closed_contour
 from .similarity import Similarity, rotation_angle
 
 __all__ = [

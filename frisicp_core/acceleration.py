@@ -59,11 +59,13 @@ class AndersonAccelerator:
         self._residuals: list[FloatArray] = []
 
     def encode(self, sim: Similarity) -> FloatArray:
-        return np.concatenate((
-            [np.log(sim.scale / self.reference.scale)],
-            _log_rotation(sim.rotation @ self.reference.rotation.T),
-            (sim.apply(self.centroid) - self._anchor) / self.radius,
-        ))
+        return np.concatenate(
+            (
+                [np.log(sim.scale / self.reference.scale)],
+                _log_rotation(sim.rotation @ self.reference.rotation.T),
+                (sim.apply(self.centroid) - self._anchor) / self.radius,
+            )
+        )
 
     def decode(self, x: FloatArray) -> Similarity:
         dim = self.centroid.shape[0]

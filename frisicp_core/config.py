@@ -94,8 +94,10 @@ class RegistrationConfig:
         _require(self.levels >= 1, f"levels must be >= 1, got {self.levels}")
         _require(self.coarsest_points >= 10, f"coarsest_points must be >= 10, got {self.coarsest_points}")
         _require(0 < self.overlap <= 1, f"overlap must be in (0, 1], got {self.overlap}")
-        _require(self.max_distance is None or self.max_distance > 0,
-                 f"max_distance must be positive or None, got {self.max_distance}")
+        _require(
+            self.max_distance is None or self.max_distance > 0,
+            f"max_distance must be positive or None, got {self.max_distance}",
+        )
         _require(self.backend in ("auto", "pykdtree", "scipy"), f"unknown backend {self.backend!r}")
         _require(self.initial is None or isinstance(self.initial, Similarity), "initial must be a Similarity")
 

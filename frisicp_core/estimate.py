@@ -69,4 +69,3 @@ def estimate_similarity(
             raise ValueError("degenerate pairs: the estimated scale is not positive")
     translation = my - scale * rotation @ mx
     return Similarity._trusted(scale, rotation, translation)
-

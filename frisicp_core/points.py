@@ -44,9 +44,16 @@ def as_point_set(points: ArrayLike, name: str, *, drop_nonfinite: bool = False) 
     rank = _spanned_directions(pts)
     needed = max(2, dim - 1)
     if rank < needed:
-        what = "all points are identical" if rank == 0 else "the points are collinear" if rank == 1 else (
-            f"the points span only {rank} of {dim} dimensions")
-        raise ValueError(f"{name}: degenerate geometry, {what}; registration needs {needed} independent directions")
+        what = (
+            "all points are identical"
+            if rank == 0
+            else "the points are collinear"
+            if rank == 1
+            else (f"the points span only {rank} of {dim} dimensions")
+        )
+        raise ValueError(
+            f"{name}: degenerate geometry, {what}; registration needs {needed} independent directions"
+        )
     return np.ascontiguousarray(pts)
 
 

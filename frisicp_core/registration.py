@@ -30,14 +30,13 @@ from numpy.typing import ArrayLike
 
 from .acceleration import AndersonAccelerator
 from .config import Initialization, Method, RegistrationConfig
-from .sampling import downsample, level_sizes
 from .estimate import estimate_similarity
-from .moments import covariance_scale_bounds, moment_guesses
 from .kdtree import NearestNeighbors
+from .moments import covariance_scale_bounds, moment_guesses
 from .points import as_point_set, check_same_dimension, rms_radius
 from .result import IterationRecord, LevelReport, RegistrationResult
+from .sampling import downsample, level_sizes
 from .similarity import FloatArray, Similarity
-
 
 # Iterations each initial hypothesis gets on the coarsest level before the best is chosen:
 # enough for the wrong ones to settle into their (higher-error) local minima.
@@ -110,8 +109,13 @@ def _keep(dist_sq: FloatArray, config: RegistrationConfig) -> np.ndarray | None:
 class _Solver:
     """Runs the ICP loop of one method on one level."""
 
-    def __init__(self, config: RegistrationConfig, scale_bounds: tuple[float, float] | None,
-                 model_radius: float, start: float) -> None:
+    def __init__(
+        self,
+        config: RegistrationConfig,
+        scale_bounds: tuple[float, float] | None,
+        model_radius: float,
+        start: float,
+    ) -> None:
         self.config = config
         self.bidirectional = config.method is Method.FRISICP
         self.with_scale = config.method is not Method.ICP
@@ -145,14 +149,18 @@ class _Solver:
             fwd_sq.shape[0] + back_sq.shape[0],
         )
 
-    def run_level(self, index: int, level: _Level, sim: Similarity, *, final: bool,
-                  max_iterations: int | None = None) -> tuple[Similarity, LevelReport, _Pairs]:
+    def run_level(
+        self, index: int, level: _Level, sim: Similarity, *, final: bool, max_iterations: int | None = None
+    ) -> tuple[Similarity, LevelReport, _Pairs]:
         """Iterate correspond -> solve on one level until the similarity stops moving."""
         criteria = self.config.criteria
         max_iterations = max_iterations or criteria.max_iterations
-        tolerance = (criteria.relative_motion if final else criteria.coarse_relative_motion) * self.model_radius
-        accelerator = (AndersonAccelerator(sim, level.data_mean, self.model_radius)
-                       if self.config.acceleration else None)
+        tolerance = (
+            criteria.relative_motion if final else criteria.coarse_relative_motion
+        ) * self.model_radius
+        accelerator = (
+            AndersonAccelerator(sim, level.data_mean, self.model_radius) if self.config.acceleration else None
+        )
         pairs = self.correspond(level, sim)
         rms = _rms(pairs.forward_sq, pairs.backward_sq)
         converged = False
@@ -160,8 +168,9 @@ class _Solver:
         for iterations in range(1, max_iterations + 1):
             self._record(index, iterations, pairs, rms)
             try:
-                step = estimate_similarity(pairs.source, pairs.target, with_scale=self.with_scale,
-                                           scale_bounds=self.scale_bounds)
+                step = estimate_similarity(
+                    pairs.source, pairs.target, with_scale=self.with_scale, scale_bounds=self.scale_bounds
+                )
             except ValueError:
                 break  # degenerate pairs (e.g. a collapsed scale): keep the last valid similarity
             if level.motion(sim, step) <= tolerance:
@@ -172,8 +181,9 @@ class _Solver:
                 break
             # Extrapolate only once a level crawls: on levels that converge in a couple of
             # steps, a rejected proposal would cost a wasted correspondence pass.
-            proposal = (accelerator.propose(sim, step)
-                        if accelerator and iterations >= _ACCELERATE_FROM else None)
+            proposal = (
+                accelerator.propose(sim, step) if accelerator and iterations >= _ACCELERATE_FROM else None
+            )
             if proposal is not None:
                 proposal_pairs = self.correspond(level, proposal)
                 proposal_rms = _rms(proposal_pairs.forward_sq, proposal_pairs.backward_sq)
@@ -192,9 +202,16 @@ class _Solver:
         return sim, report, pairs
 
     def _record(self, level: int, iteration: int, pairs: _Pairs, rms: float) -> None:
-        self.history.append(IterationRecord(
-            level, iteration, rms, _rms(pairs.forward_sq), _rms(pairs.backward_sq),
-            time.perf_counter() - self.start))
+        self.history.append(
+            IterationRecord(
+                level,
+                iteration,
+                rms,
+                _rms(pairs.forward_sq),
+                _rms(pairs.backward_sq),
+                time.perf_counter() - self.start,
+            )
+        )
 
 
 def _rms(*squared: FloatArray) -> float:
@@ -204,27 +221,38 @@ def _rms(*squared: FloatArray) -> float:
     return float(np.sqrt(sum(float(s.sum()) for s in squared) / count))
 
 
-def _initial_guesses(data: FloatArray, model: FloatArray, config: RegistrationConfig,
-                     scale_bounds: tuple[float, float] | None) -> list[Similarity]:
+def _initial_guesses(
+    data: FloatArray, model: FloatArray, config: RegistrationConfig, scale_bounds: tuple[float, float] | None
+) -> list[Similarity]:
     if config.initial is not None:
         if config.initial.dim != data.shape[1]:
-            raise ValueError(f"initial similarity is {config.initial.dim}-D but the points are {data.shape[1]}-D")
+            raise ValueError(
+                f"initial similarity is {config.initial.dim}-D but the points are {data.shape[1]}-D"
+            )
         guesses = [config.initial]
     elif config.initialization is Initialization.IDENTITY:
         guesses = [Similarity.identity(data.shape[1])]
     else:
-        guesses = moment_guesses(data, model, principal_axes=config.initialization is Initialization.PRINCIPAL_AXES)
+        guesses = moment_guesses(
+            data, model, principal_axes=config.initialization is Initialization.PRINCIPAL_AXES
+        )
         if config.method is Method.ICP:
-            guesses = [Similarity(1.0, g.rotation, model.mean(axis=0) - g.rotation @ data.mean(axis=0))
-                       for g in guesses]
+            guesses = [
+                Similarity(1.0, g.rotation, model.mean(axis=0) - g.rotation @ data.mean(axis=0))
+                for g in guesses
+            ]
     if scale_bounds is not None:
         # Du's method must start inside its bounds: from outside, the first clipped step can raise
         # the error, which the loop would take for convergence after one iteration.
-        guesses = [Similarity(float(np.clip(g.scale, *scale_bounds)), g.rotation, g.translation) for g in guesses]
+        guesses = [
+            Similarity(float(np.clip(g.scale, *scale_bounds)), g.rotation, g.translation) for g in guesses
+        ]
     return guesses
 
 
-def register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig | None = None) -> RegistrationResult:
+def register(
+    data: ArrayLike, model: ArrayLike, config: RegistrationConfig | None = None
+) -> RegistrationResult:
     """Find the similarity T with model ≈ T(data) = s R data + t.
 
     ``data`` (N, m) and ``model`` (M, m) are point sets in any dimension m >= 2; no
@@ -246,7 +274,9 @@ def register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig | Non
         finer_data, finer_model = pyramid[0]
         pyramid.insert(0, (downsample(finer_data, size, rng), downsample(finer_model, size, rng)))
 
-    scale_bounds = covariance_scale_bounds(data_set, model_set) if config.method is Method.BOUNDED_ICP else None
+    scale_bounds = (
+        covariance_scale_bounds(data_set, model_set) if config.method is Method.BOUNDED_ICP else None
+    )
     solver = _Solver(config, scale_bounds, rms_radius(model_set), start)
     bidirectional = config.method is Method.FRISICP
     last = len(pyramid) - 1
@@ -258,8 +288,10 @@ def register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig | Non
         # one is iterated on. (A smaller screening subset was tried: on noisy data its errors no
         # longer told a pose from its 180-degree flip; see test_noisy_resampled_cold_starts.)
         screener = _Solver(replace(config, acceleration=False), scale_bounds, solver.model_radius, start)
-        screened = [screener.run_level(0, coarsest, g, final=False, max_iterations=_SCREENING_ITERATIONS)
-                    for g in guesses]
+        screened = [
+            screener.run_level(0, coarsest, g, final=False, max_iterations=_SCREENING_ITERATIONS)
+            for g in guesses
+        ]
         guesses = [min(screened, key=lambda outcome: outcome[1].rms)[0]]
     sim, report, pairs = solver.run_level(0, coarsest, guesses[0], final=last == 0)
     reports = [report]

@@ -16,8 +16,8 @@ import sys
 import threading
 import time
 from collections.abc import Iterator
-from contextlib import closing
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import closing
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -43,39 +43,77 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "bag",
         help="register the cloud pairs of a bag offline (no ROS installation needed)",
         description="Register every (model, data) PointCloud2 pair of a rosbag2 folder, .db3 or "
-                    ".mcap file, or ROS 1 .bag, paired as the live node pairs them. One JSON line "
-                    "per pair on stdout (or --out), a progress bar and a summary on stderr.",
+        ".mcap file, or ROS 1 .bag, paired as the live node pairs them. One JSON line "
+        "per pair on stdout (or --out), a progress bar and a summary on stderr.",
     )
     parser.add_argument("input", help="rosbag2 folder, .db3 or .mcap file, or ROS 1 .bag file")
     parser.add_argument("--model-topic", required=True, help="PointCloud2 topic that stays fixed")
     parser.add_argument("--data-topic", required=True, help="PointCloud2 topic registered onto the model")
-    parser.add_argument("--pairing", choices=PAIRING_MODES, default=DEFAULTS.pairing,
-                        help="latest_model: each data cloud with the newest model before it; "
-                             "synchronized: model and data with header stamps within --sync-tolerance")
-    parser.add_argument("--sync-tolerance", type=float, default=DEFAULTS.sync_tolerance, metavar="SEC",
-                        help="largest stamp difference of a synchronized pair (default %(default)s)")
-    parser.add_argument("--out", default="-", metavar="FILE",
-                        help="JSONL result file, one line per pair (default: stdout)")
-    parser.add_argument("--out-bag", metavar="DIR",
-                        help="also write a rosbag2 (mcap) with the node's output topics")
-    parser.add_argument("--out-prefix", default="/frisicp", metavar="NS",
-                        help="namespace of the result bag's topics, the node's name (default %(default)s)")
-    parser.add_argument("--no-aligned", action="store_true",
-                        help="leave the aligned data clouds out of the result bag")
-    parser.add_argument("--jobs", type=int, default=1, metavar="N",
-                        help="registration processes; results stay in bag order (default 1)")
-    parser.add_argument("--warm-start", action="store_true",
-                        help="start each pair from the previous estimate, as the node does (--jobs 1 only)")
-    parser.add_argument("--dims", type=int, choices=(2, 3), default=DEFAULTS.dims,
-                        help="3: x y z; 2: x y only (planar scans)")
-    parser.add_argument("--max-points", type=int, default=DEFAULTS.max_points, metavar="N",
-                        help="random down-sampling cap per cloud, 0 = none (default %(default)s)")
+    parser.add_argument(
+        "--pairing",
+        choices=PAIRING_MODES,
+        default=DEFAULTS.pairing,
+        help="latest_model: each data cloud with the newest model before it; "
+        "synchronized: model and data with header stamps within --sync-tolerance",
+    )
+    parser.add_argument(
+        "--sync-tolerance",
+        type=float,
+        default=DEFAULTS.sync_tolerance,
+        metavar="SEC",
+        help="largest stamp difference of a synchronized pair (default %(default)s)",
+    )
+    parser.add_argument(
+        "--out", default="-", metavar="FILE", help="JSONL result file, one line per pair (default: stdout)"
+    )
+    parser.add_argument(
+        "--out-bag", metavar="DIR", help="also write a rosbag2 (mcap) with the node's output topics"
+    )
+    parser.add_argument(
+        "--out-prefix",
+        default="/frisicp",
+        metavar="NS",
+        help="namespace of the result bag's topics, the node's name (default %(default)s)",
+    )
+    parser.add_argument(
+        "--no-aligned", action="store_true", help="leave the aligned data clouds out of the result bag"
+    )
+    parser.add_argument(
+        "--jobs",
+        type=int,
+        default=1,
+        metavar="N",
+        help="registration processes; results stay in bag order (default 1)",
+    )
+    parser.add_argument(
+        "--warm-start",
+        action="store_true",
+        help="start each pair from the previous estimate, as the node does (--jobs 1 only)",
+    )
+    parser.add_argument(
+        "--dims", type=int, choices=(2, 3), default=DEFAULTS.dims, help="3: x y z; 2: x y only (planar scans)"
+    )
+    parser.add_argument(
+        "--max-points",
+        type=int,
+        default=DEFAULTS.max_points,
+        metavar="N",
+        help="random down-sampling cap per cloud, 0 = none (default %(default)s)",
+    )
     parser.add_argument("--method", choices=[m.value for m in Method], default=DEFAULTS.method)
-    parser.add_argument("--overlap", type=float, default=DEFAULTS.overlap,
-                        help="fraction of each cloud expected to have a counterpart (trimming); 1 = all")
+    parser.add_argument(
+        "--overlap",
+        type=float,
+        default=DEFAULTS.overlap,
+        help="fraction of each cloud expected to have a counterpart (trimming); 1 = all",
+    )
     parser.add_argument("--levels", type=int, default=DEFAULTS.levels, help="sparse-to-dense levels")
-    parser.add_argument("--init", choices=[i.value for i in Initialization], default=DEFAULTS.initialization,
-                        help="starting guess")
+    parser.add_argument(
+        "--init",
+        choices=[i.value for i in Initialization],
+        default=DEFAULTS.initialization,
+        help="starting guess",
+    )
     parser.add_argument("--model-frame", default="", help="expected model frame id (default: any)")
     parser.add_argument("--data-frame", default="", help="expected data frame id (default: any)")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
@@ -85,10 +123,19 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
     try:
         return PipelineSettings(
-            dims=args.dims, max_points=args.max_points, warm_start=args.warm_start, pairing=args.pairing,
-            sync_tolerance=args.sync_tolerance, model_frame=args.model_frame, data_frame=args.data_frame,
-            publish_aligned=not args.no_aligned, method=args.method, levels=args.levels,
-            overlap=args.overlap, initialization=args.init)
+            dims=args.dims,
+            max_points=args.max_points,
+            warm_start=args.warm_start,
+            pairing=args.pairing,
+            sync_tolerance=args.sync_tolerance,
+            model_frame=args.model_frame,
+            data_frame=args.data_frame,
+            publish_aligned=not args.no_aligned,
+            method=args.method,
+            levels=args.levels,
+            overlap=args.overlap,
+            initialization=args.init,
+        )
     except ValueError as err:
         raise CommandError(str(err)) from None
 
@@ -117,8 +164,10 @@ class RunStats:
         seconds = time.perf_counter() - self.started
         median = f"{statistics.median(self.rms):.6g}" if self.rms else "n/a"
         rate = f", {self.pairs / seconds:.2f} pairs/s" if seconds > 0 and self.pairs else ""
-        text = (f"pairs {self.pairs} (rejected {self.rejected}), converged {self.converged}, "
-                f"median RMS {median}, time {seconds:.2f} s{rate}")
+        text = (
+            f"pairs {self.pairs} (rejected {self.rejected}), converged {self.converged}, "
+            f"median RMS {median}, time {seconds:.2f} s{rate}"
+        )
         if unpaired:
             text += f"; {unpaired} data clouds found no model"
         return text
@@ -168,28 +217,38 @@ def run(args: argparse.Namespace) -> int:
             for topic in (args.model_topic, args.data_topic):
                 require_pointcloud2_topic(reader, topic)
             data_count = reader.topics[args.data_topic].msgcount
-            reading = PairReading(reader, args.model_topic, args.data_topic,
-                                  Pairer(settings.pairing, settings.sync_tolerance))
+            reading = PairReading(
+                reader, args.model_topic, args.data_topic, Pairer(settings.pairing, settings.sync_tolerance)
+            )
             return process_bag(args, settings, reading, data_count)
     except (BagError, OutputError) as err:
         raise CommandError(str(err)) from None
 
 
-def process_bag(args: argparse.Namespace, settings: PipelineSettings, reading: PairReading,
-                data_count: int) -> int:
+def process_bag(
+    args: argparse.Namespace, settings: PipelineSettings, reading: PairReading, data_count: int
+) -> int:
     topics = ALWAYS_PUBLISHED + (("aligned",) if settings.publish_aligned else ())
     results = JsonLines(args.out)
     result_bag = ResultBag(args.out_bag, args.out_prefix, topics) if args.out_bag else None
     stats = RunStats()
-    progress = tqdm(total=data_count, unit="cloud", desc="registering", file=sys.stderr,
-                    disable=args.no_progress, dynamic_ncols=True)
+    progress = tqdm(
+        total=data_count,
+        unit="cloud",
+        desc="registering",
+        file=sys.stderr,
+        disable=args.no_progress,
+        dynamic_ncols=True,
+    )
     stopped: str | None = None
     code = 0
     try:
         pairs: Iterator[BagPair] = iter(reading)
         # closing(): leaving the loop early must stop the workers right away.
-        with InterruptRequest() as interrupt, closing(
-                ordered_map(PairRegistrar(settings), pairs, args.jobs)) as registered:
+        with (
+            InterruptRequest() as interrupt,
+            closing(ordered_map(PairRegistrar(settings), pairs, args.jobs)) as registered,
+        ):
             for pair, outcome in registered:
                 outcome = replace(outcome, data_msg=pair.data.cloud)
                 results.write(pair_record(pair, outcome))
@@ -229,5 +288,7 @@ def no_pairs_hint(args: argparse.Namespace, reading: PairReading) -> str:
         return f"{reading.model_clouds} model and {reading.data_clouds} data clouds in the bag"
     if args.pairing == "latest_model":
         return "every data cloud came before the first model cloud"
-    return (f"no model and data header stamps within --sync-tolerance {args.sync_tolerance} s "
-            "(try a larger tolerance, or --pairing latest_model)")
+    return (
+        f"no model and data header stamps within --sync-tolerance {args.sync_tolerance} s "
+        "(try a larger tolerance, or --pairing latest_model)"
+    )

@@ -14,7 +14,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "bag-info",
         help="list a bag's topics, types and counts, marking the PointCloud2 topics",
         description="List the topics of a rosbag2 folder, .db3, .mcap or ROS 1 .bag file "
-                    "(no ROS installation needed).",
+        "(no ROS installation needed).",
     )
     parser.add_argument("input", help="rosbag2 folder, .db3 or .mcap file, or ROS 1 .bag file")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
@@ -31,16 +31,20 @@ def run(args: argparse.Namespace) -> int:
     # An empty bag reports start > end (rosbags' sentinels); say 0 rather than a negative span.
     duration_sec = max(end_ns - start_ns, 0) / 1e9 if count else 0.0
     if args.json:
-        print(json.dumps({
-            "path": str(args.input),
-            "messages": count,
-            "duration_sec": duration_sec,
-            "start_ns": start_ns if count else None,
-            "topics": [
-                {"name": t.name, "type": t.msgtype, "count": t.count, "pointcloud2": t.is_pointcloud2}
-                for t in topics
-            ],
-        }))
+        print(
+            json.dumps(
+                {
+                    "path": str(args.input),
+                    "messages": count,
+                    "duration_sec": duration_sec,
+                    "start_ns": start_ns if count else None,
+                    "topics": [
+                        {"name": t.name, "type": t.msgtype, "count": t.count, "pointcloud2": t.is_pointcloud2}
+                        for t in topics
+                    ],
+                }
+            )
+        )
         return 0
     print(f"bag       {args.input}")
     print(f"messages  {count}   duration {duration_sec:.3f} s")

@@ -24,8 +24,9 @@ ResultT = TypeVar("ResultT")
 WORKER_ENVIRONMENT = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
 
 
-def ordered_map(function: Callable[[InputT], ResultT], inputs: Iterable[InputT], jobs: int,
-                window: int | None = None) -> Iterator[tuple[InputT, ResultT]]:
+def ordered_map(
+    function: Callable[[InputT], ResultT], inputs: Iterable[InputT], jobs: int, window: int | None = None
+) -> Iterator[tuple[InputT, ResultT]]:
     """Yield ``(input, function(input))`` in input order, computed by ``jobs`` processes.
 
     ``function`` and the inputs must be picklable when ``jobs > 1``. Closing the generator
@@ -42,8 +43,9 @@ def ordered_map(function: Callable[[InputT], ResultT], inputs: Iterable[InputT],
     with _worker_environment():
         # spawn, not fork: a forked child would inherit the parent's OpenMP thread pool
         # (already sized) and any threads the caller runs.
-        executor = ProcessPoolExecutor(max_workers=jobs, mp_context=multiprocessing.get_context("spawn"),
-                                       initializer=_ignore_interrupts)
+        executor = ProcessPoolExecutor(
+            max_workers=jobs, mp_context=multiprocessing.get_context("spawn"), initializer=_ignore_interrupts
+        )
         try:
             for item in inputs:
                 pending.append((item, executor.submit(function, item)))

@@ -107,9 +107,11 @@ class ResultBag:
             self.staging.mkdir()
             self.writer.open()
             self.connections = {
-                suffix: self.writer.add_connection(self.names[suffix], OUTPUT_TOPICS[suffix],
-                                                   typestore=self.typestore)
-                for suffix in topics}
+                suffix: self.writer.add_connection(
+                    self.names[suffix], OUTPUT_TOPICS[suffix], typestore=self.typestore
+                )
+                for suffix in topics
+            }
         except Exception as err:  # noqa: BLE001 - permission, disk full: all "cannot create"
             shutil.rmtree(self.staging, ignore_errors=True)
             raise OutputError(f"cannot create {self.temporary}: {err}") from None

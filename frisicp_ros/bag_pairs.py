@@ -44,10 +44,15 @@ class PlainCloud(CloudParts):
         stamp = msg.header.stamp
         return cls(
             header=Header(Stamp(int(stamp.sec), int(stamp.nanosec)), str(msg.header.frame_id)),
-            height=int(msg.height), width=int(msg.width), fields=field_specs(msg.fields),
-            is_bigendian=bool(msg.is_bigendian), point_step=int(msg.point_step),
-            row_step=int(msg.row_step), data=np.asarray(msg.data, dtype=np.uint8),
-            is_dense=bool(msg.is_dense))
+            height=int(msg.height),
+            width=int(msg.width),
+            fields=field_specs(msg.fields),
+            is_bigendian=bool(msg.is_bigendian),
+            point_step=int(msg.point_step),
+            row_step=int(msg.row_step),
+            data=np.asarray(msg.data, dtype=np.uint8),
+            is_dense=bool(msg.is_dense),
+        )
 
     @property
     def stamp_ns(self) -> int:
@@ -85,16 +90,20 @@ class PairReading:
         try:
             for message in read_messages(self.reader, [self.model_topic, self.data_topic]):
                 if message.error is not None:
-                    self.stopped = (f"message {message.index} ({message.topic} at bag time "
-                                    f"{message.stamp_ns} ns) cannot be decoded: {message.error}")
+                    self.stopped = (
+                        f"message {message.index} ({message.topic} at bag time "
+                        f"{message.stamp_ns} ns) cannot be decoded: {message.error}"
+                    )
                     return
                 is_data = message.topic == self.data_topic
                 ordinal = self.data_clouds if is_data else self.model_clouds
                 try:
                     cloud = StampedCloud(message.stamp_ns, ordinal, PlainCloud.from_message(message.message))
                 except (AttributeError, TypeError, ValueError) as err:
-                    self.stopped = (f"message {message.index} ({message.topic} at bag time "
-                                    f"{message.stamp_ns} ns) is not a usable PointCloud2: {err}")
+                    self.stopped = (
+                        f"message {message.index} ({message.topic} at bag time "
+                        f"{message.stamp_ns} ns) is not a usable PointCloud2: {err}"
+                    )
                     return
                 if is_data:
                     self.data_clouds += 1

@@ -144,8 +144,10 @@ def read_messages(reader: AnyReader, topics: Sequence[str]) -> Iterator[BagMessa
 def repair_hint(err: BaseException) -> str:
     # rosbags needs an MCAP's footer; a recording cut off by a crash or full disk has none.
     if "end magic" in str(err):
-        return ("; the MCAP file is incomplete (a recording that was cut off?): "
-                "`mcap recover IN -o OUT` (the mcap CLI) restores what it holds")
+        return (
+            "; the MCAP file is incomplete (a recording that was cut off?): "
+            "`mcap recover IN -o OUT` (the mcap CLI) restores what it holds"
+        )
     return ""
 
 

@@ -21,14 +21,25 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "bench",
         help="run the paper's experiments on the real data; write tables, JSON and figures",
         description="FRISICP against ICP, Zinßer's and Du's scale ICP (and Open3D when installed) "
-                    "over the paper's 15 scale factors on MPEG-7 contours and the Stanford bunny.",
+        "over the paper's 15 scale factors on MPEG-7 contours and the Stanford bunny.",
     )
-    parser.add_argument("--quick", action="store_true",
-                        help="a small subset (3 scales, apple and the low-resolution bunny) for CI")
-    parser.add_argument("--out", type=Path, default=None,
-                        help="output folder (default: docs/benchmarks, or build/bench-quick with --quick)")
-    parser.add_argument("--data", type=Path, default=None,
-                        help="the shared data folder (default: ../shared/data beside the repository)")
+    parser.add_argument(
+        "--quick",
+        action="store_true",
+        help="a small subset (3 scales, apple and the low-resolution bunny) for CI",
+    )
+    parser.add_argument(
+        "--out",
+        type=Path,
+        default=None,
+        help="output folder (default: docs/benchmarks, or build/bench-quick with --quick)",
+    )
+    parser.add_argument(
+        "--data",
+        type=Path,
+        default=None,
+        help="the shared data folder (default: ../shared/data beside the repository)",
+    )
     parser.add_argument("--seed", type=int, default=0, help="seed of the perturbations")
     parser.add_argument("--no-open3d", action="store_true", help="leave Open3D out even when installed")
     parser.add_argument("--no-figures", action="store_true", help="tables and JSON only")
@@ -36,10 +47,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def environment(open3d_used: bool) -> dict[str, str]:
-    versions = {"date": datetime.date.today().isoformat(),
-                "machine": f"{platform.machine()} {os.cpu_count()} CPUs",
-                "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", "unset"),
-                "python": platform.python_version(), "numpy": np.__version__, "scipy": scipy.__version__}
+    versions = {
+        "date": datetime.date.today().isoformat(),
+        "machine": f"{platform.machine()} {os.cpu_count()} CPUs",
+        "OMP_NUM_THREADS": os.environ.get("OMP_NUM_THREADS", "unset"),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+    }
     if open3d_used:
         import open3d
 
@@ -67,9 +82,14 @@ def run(args: argparse.Namespace) -> int:
         families = suite.families(data_dir)
     except DataMissingError as err:
         raise CommandError(str(err)) from None
-    print(f"{suite.name} run: {len(families)} families x {len(suite.scales)} scales, "
-          f"methods {', '.join(m.key for m in methods)}", flush=True)
-    result = run_benchmark(families, methods, suite.scales, args.seed, progress=lambda line: print(line, flush=True))
+    print(
+        f"{suite.name} run: {len(families)} families x {len(suite.scales)} scales, "
+        f"methods {', '.join(m.key for m in methods)}",
+        flush=True,
+    )
+    result = run_benchmark(
+        families, methods, suite.scales, args.seed, progress=lambda line: print(line, flush=True)
+    )
     figures: list[str] = []
     if not args.no_figures:
         from .bench.figures import write_figures
@@ -78,11 +98,19 @@ def run(args: argparse.Namespace) -> int:
     # The duration covers loading, all registrations and the figures.
     result = dataclasses.replace(result, seconds=time.perf_counter() - start)
     checks = check_targets(result)
-    written = write_tables(result, checks, environment(any(m.key == "open3d" for m in methods)), figures,
-                           out_dir, command_line(args))
+    written = write_tables(
+        result,
+        checks,
+        environment(any(m.key == "open3d" for m in methods)),
+        figures,
+        out_dir,
+        command_line(args),
+    )
     for check in checks:
         print(f"[{'met' if check.met else 'MISSED'}] {check.target}: {check.detail}")
-    print(f"{result.seconds / 60:.1f} min; wrote {', '.join(str(p) for p in written)} and {len(figures)} figures")
+    print(
+        f"{result.seconds / 60:.1f} min; wrote {', '.join(str(p) for p in written)} and {len(figures)} figures"
+    )
     return 0
 
 

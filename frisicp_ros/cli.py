@@ -13,8 +13,12 @@ import sys
 from collections.abc import Sequence
 
 # Modules providing subcommands, in the order `frisicp --help` lists them.
-SUBCOMMANDS = ("frisicp_ros.register_command", "frisicp_ros.bag_command", "frisicp_ros.bag_info_command",
-               "frisicp_ros.bench_command")
+SUBCOMMANDS = (
+    "frisicp_ros.register_command",
+    "frisicp_ros.bag_command",
+    "frisicp_ros.bag_info_command",
+    "frisicp_ros.bench_command",
+)
 
 
 class CommandError(Exception):
@@ -27,7 +31,8 @@ class CommandError(Exception):
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="frisicp", description="Scale-aware point cloud registration (FRISICP).")
+        prog="frisicp", description="Scale-aware point cloud registration (FRISICP)."
+    )
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for name in SUBCOMMANDS:
         importlib.import_module(name).add_parser(subparsers)

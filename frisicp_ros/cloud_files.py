@@ -74,7 +74,6 @@ def _read_text(file: Path) -> FloatArray:
     return _as_points(table[:, : min(3, table.shape[1])], file)
 
 
-
 def _read_pcd(file: Path) -> FloatArray:
     from pypcd4 import PointCloud
 

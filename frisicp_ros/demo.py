@@ -41,21 +41,31 @@ def truth_at(t: float) -> Similarity:
     axis /= np.linalg.norm(axis)
     skew = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
     rotation = np.eye(3) + np.sin(angle) * skew + (1 - np.cos(angle)) * skew @ skew
-    return Similarity(1.0 + 0.3 * np.sin(0.5 * t), rotation,
-                      np.array([0.5 * np.cos(0.3 * t), 0.5 * np.sin(0.3 * t), 0.2]))
+    return Similarity(
+        1.0 + 0.3 * np.sin(0.5 * t), rotation, np.array([0.5 * np.cos(0.3 * t), 0.5 * np.sin(0.3 * t), 0.2])
+    )
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser = argparse.ArgumentParser(prog="frisicp-demo", description=__doc__.splitlines()[0])
-    parser.add_argument("--duration", type=float, default=8.0,
-                        help="seconds of streaming after the first answer (default 8)")
+    parser.add_argument(
+        "--duration", type=float, default=8.0, help="seconds of streaming after the first answer (default 8)"
+    )
     parser.add_argument("--rate", type=float, default=2.0, help="data clouds per second (default 2)")
     parser.add_argument("--points", type=int, default=5000, help="points per data cloud (default 5000)")
     parser.add_argument("--noise", type=float, default=0.005, help="Gaussian noise sigma (default 0.005)")
-    parser.add_argument("--max-points", type=int, default=2500,
-                        help="node's max_points: the cap that bounds latency (default 2500)")
-    parser.add_argument("--domain-id", type=int, default=DEFAULT_DOMAIN_ID,
-                        help=f"ROS_DOMAIN_ID of the demo (default {DEFAULT_DOMAIN_ID})")
+    parser.add_argument(
+        "--max-points",
+        type=int,
+        default=2500,
+        help="node's max_points: the cap that bounds latency (default 2500)",
+    )
+    parser.add_argument(
+        "--domain-id",
+        type=int,
+        default=DEFAULT_DOMAIN_ID,
+        help=f"ROS_DOMAIN_ID of the demo (default {DEFAULT_DOMAIN_ID})",
+    )
     return parser.parse_args(argv)
 
 
@@ -72,8 +82,20 @@ def register_node_command(max_points: int) -> list[str]:
     script = str(beside) if beside.exists() else shutil.which("register_node")
     if script is None:
         raise SystemExit("frisicp-demo: register_node is not installed (pip install -e '.[ros]')")
-    return [script, "--ros-args", "-r", "model:=/frisicp_demo/model", "-r", "data:=/frisicp_demo/data",
-            "-p", "model_qos:=transient_local", "-p", f"max_points:={max_points}", "-p", "data_frame:=demo_sensor"]
+    return [
+        script,
+        "--ros-args",
+        "-r",
+        "model:=/frisicp_demo/model",
+        "-r",
+        "data:=/frisicp_demo/data",
+        "-p",
+        "model_qos:=transient_local",
+        "-p",
+        f"max_points:={max_points}",
+        "-p",
+        "data_frame:=demo_sensor",
+    ]
 
 
 def stop_node(node: subprocess.Popen, timeout: float) -> str:
@@ -90,8 +112,13 @@ def stop_node(node: subprocess.Popen, timeout: float) -> str:
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
     env = isolate_dds(args.domain_id)
-    node = subprocess.Popen(register_node_command(args.max_points), env=env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True)
+    node = subprocess.Popen(
+        register_node_command(args.max_points),
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     print(f"frisicp demo: register_node running (pid {node.pid}), ROS domain {args.domain_id}, loopback only")
     try:
         registered, sent = run_stream(args)
@@ -123,7 +150,9 @@ def run_stream(args: argparse.Namespace) -> tuple[list[tuple[Similarity, Similar
     context = rclpy.Context()
     rclpy.init(context=context, signal_handler_options=rclpy.SignalHandlerOptions.NO)
     publisher_node = rclpy.create_node("frisicp_demo_publisher", context=context)
-    latched = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    latched = QoSProfile(
+        depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+    )
     model_pub = publisher_node.create_publisher(PointCloud2, "/frisicp_demo/model", latched)
     data_pub = publisher_node.create_publisher(PointCloud2, "/frisicp_demo/data", 10)
     lock = threading.Lock()
@@ -153,11 +182,15 @@ def run_stream(args: argparse.Namespace) -> tuple[list[tuple[Similarity, Similar
     order: list[int] = []
     printed = 0
     print("model: bumpy surface, 20000 points, latched on /frisicp_demo/model (frame demo_map)")
-    print(f"data:  {args.points} points at {args.rate:g} Hz, noise sigma {args.noise:g}, changing truth,"
-          " on /frisicp_demo/data (frame demo_sensor)\n")
+    print(
+        f"data:  {args.points} points at {args.rate:g} Hz, noise sigma {args.noise:g}, changing truth,"
+        " on /frisicp_demo/data (frame demo_sensor)\n"
+    )
     print("latency = data cloud published -> ~/transform received; rms in model units\n")
-    print(f"{'t (s)':>6}  {'scale true':>10}  {'scale est':>10}  {'rot true':>8}  {'rot err':>8}"
-          f"  {'trans err':>9}  {'rms':>8}  {'latency':>8}")
+    print(
+        f"{'t (s)':>6}  {'scale true':>10}  {'scale est':>10}  {'rot true':>8}  {'rot err':>8}"
+        f"  {'trans err':>9}  {'rms':>8}  {'latency':>8}"
+    )
     start = time.monotonic()
     next_send = start
     streaming_until: float | None = None  # set at the first answer: DDS discovery is not demo time
@@ -217,9 +250,12 @@ def print_new_rows(order, sent, transforms, arrival, scales, rms, lock, start, p
     for (truth, estimate, error, latency), stamp in zip(rows[printed:], answered[printed:]):
         rot_err = np.degrees(rotation_angle(estimate.rotation.T @ truth.rotation))
         trans_err = np.linalg.norm(estimate.translation - truth.translation)
-        print(f"{sent[stamp][1] - start:6.1f}  {truth.scale:10.4f}  {estimate.scale:10.4f}"
-              f"  {np.degrees(truth.rotation_angle()):7.1f}°  {rot_err:7.3f}°  {trans_err:9.4f}"
-              f"  {error:8.4f}  {latency * 1e3:6.0f} ms", flush=True)
+        print(
+            f"{sent[stamp][1] - start:6.1f}  {truth.scale:10.4f}  {estimate.scale:10.4f}"
+            f"  {np.degrees(truth.rotation_angle()):7.1f}°  {rot_err:7.3f}°  {trans_err:9.4f}"
+            f"  {error:8.4f}  {latency * 1e3:6.0f} ms",
+            flush=True,
+        )
     return len(rows)
 
 
@@ -230,12 +266,18 @@ def print_summary(rows, sent: int, clean: bool) -> None:
         rot_err = np.median([np.degrees(rotation_angle(e.rotation.T @ t.rotation)) for t, e, _, _ in rows])
         trans_err = np.median([np.linalg.norm(e.translation - t.translation) for t, e, _, _ in rows])
         latency = np.median([lat for *_, lat in rows]) * 1e3
-        print(f"registered {len(rows)} of {sent} data clouds (the rest were replaced by newer ones while"
-              f" the node was busy); median errors: scale {scale_err:.3f} %, rotation {rot_err:.3f}°,"
-              f" translation {trans_err:.4f}; median latency {latency:.0f} ms")
+        print(
+            f"registered {len(rows)} of {sent} data clouds (the rest were replaced by newer ones while"
+            f" the node was busy); median errors: scale {scale_err:.3f} %, rotation {rot_err:.3f}°,"
+            f" translation {trans_err:.4f}; median latency {latency:.0f} ms"
+        )
     else:
         print(f"no estimate received for {sent} data clouds")
-    print("register_node stopped cleanly (SIGINT, exit code 0)" if clean else "register_node did NOT exit cleanly")
+    print(
+        "register_node stopped cleanly (SIGINT, exit code 0)"
+        if clean
+        else "register_node did NOT exit cleanly"
+    )
 
 
 if __name__ == "__main__":

@@ -15,7 +15,7 @@ import os
 # docs/core_speed_omp1.md). It must be set before pykdtree loads, as libgomp reads it at load.
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-import sys  # noqa: E402 - after the OpenMP default above
+import sys
 import threading
 import time
 from dataclasses import dataclass
@@ -57,9 +57,12 @@ SUBSCRIPTION_QOS = {
     "sensor_data": qos_profile_sensor_data,  # best effort, volatile, depth 5
     "reliable": QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE),
     # A latched map: receives the last map published before this node started.
-    "transient_local": QoSProfile(depth=1, history=HistoryPolicy.KEEP_LAST,
-                                  reliability=ReliabilityPolicy.RELIABLE,
-                                  durability=DurabilityPolicy.TRANSIENT_LOCAL),
+    "transient_local": QoSProfile(
+        depth=1,
+        history=HistoryPolicy.KEEP_LAST,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    ),
 }
 OUTPUT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -87,14 +90,20 @@ class RegistrationNode(Node):
         self._reset_requested = threading.Event()
         self._new_settings: PipelineSettings | None = None
 
-        self._output_publishers = {suffix: self.create_publisher(self._types[type_name], f"~/{suffix}", OUTPUT_QOS)
-                            for suffix, type_name in OUTPUT_TOPICS.items()}
+        self._output_publishers = {
+            suffix: self.create_publisher(self._types[type_name], f"~/{suffix}", OUTPUT_QOS)
+            for suffix, type_name in OUTPUT_TOPICS.items()
+        }
         self._diagnostics_publisher = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
         # With the `bag` parameter the clouds come from a bag instead of subscriptions (replay.py).
         replay = declare_replay_parameters(self)
-        self._replay = None if replay is None else BagReplay(self, replay, self._pipeline, self.publish_outcome)
+        self._replay = (
+            None if replay is None else BagReplay(self, replay, self._pipeline, self.publish_outcome)
+        )
         if self._replay is None:
-            self.create_subscription(PointCloud2, "model", self._on_model, SUBSCRIPTION_QOS[values["model_qos"]])
+            self.create_subscription(
+                PointCloud2, "model", self._on_model, SUBSCRIPTION_QOS[values["model_qos"]]
+            )
             self.create_subscription(PointCloud2, "data", self._on_data, SUBSCRIPTION_QOS[values["data_qos"]])
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.add_on_set_parameters_callback(self._validate_parameters)
@@ -108,7 +117,8 @@ class RegistrationNode(Node):
             self._replay.start()
         self.get_logger().info(
             f"registering '{self.resolve_topic_name('data')}' onto '{self.resolve_topic_name('model')}'"
-            f" ({settings.pairing}, {settings.dims}-D, max_points {settings.max_points or 'unlimited'})")
+            f" ({settings.pairing}, {settings.dims}-D, max_points {settings.max_points or 'unlimited'})"
+        )
 
     # --- inputs (executor callbacks: cheap, never register) ---------------------------------------
 
@@ -170,7 +180,7 @@ class RegistrationNode(Node):
                 continue  # reset while registering: the result belongs to the old state
             try:
                 self.publish_outcome(outcome, pending.received_at)
-            except Exception:  # noqa: BLE001 - only expected while the context shuts down
+            except Exception:
                 if self.context.ok() and not self._stopping.is_set():
                     raise
                 return
@@ -193,29 +203,39 @@ class RegistrationNode(Node):
         """
         started = time.perf_counter()
         if not outcome.ok:
-            self.get_logger().warning(f"skipped: {outcome.rejection}",
-                                      throttle_duration_sec=_WARN_THROTTLE_SEC)
+            self.get_logger().warning(
+                f"skipped: {outcome.rejection}", throttle_duration_sec=_WARN_THROTTLE_SEC
+            )
             self._status.record(outcome, None, 0.0)
             return
         topics = ALWAYS_PUBLISHED
-        if self._pipeline.settings.publish_aligned and self._output_publishers["aligned"].get_subscription_count():
+        if (
+            self._pipeline.settings.publish_aligned
+            and self._output_publishers["aligned"].get_subscription_count()
+        ):
             topics = (*ALWAYS_PUBLISHED, "aligned")
         for suffix, message in build_outputs(outcome, self._types, topics).items():
             self._output_publishers[suffix].publish(message)
         latency = None if received_at is None else time.monotonic() - received_at
         self._status.record(outcome, latency, time.perf_counter() - started)
         if not outcome.result.converged:
-            self.get_logger().warning("registration did not converge (published anyway)",
-                                      throttle_duration_sec=_WARN_THROTTLE_SEC)
+            self.get_logger().warning(
+                "registration did not converge (published anyway)", throttle_duration_sec=_WARN_THROTTLE_SEC
+            )
 
     def _publish_diagnostics(self) -> None:
         with self._pairer_lock:
             unpaired, has_model = self._pairer.unpaired_data, self._pairer.latest_model is not None
-        report = self._status.report(self._slot.dropped, unpaired, has_model or self._pairer.mode != "latest_model")
+        report = self._status.report(
+            self._slot.dropped, unpaired, has_model or self._pairer.mode != "latest_model"
+        )
         status = DiagnosticStatus(
-            level=bytes([report.level]), name=f"{self.get_name()}: registration", message=report.message,
+            level=bytes([report.level]),
+            name=f"{self.get_name()}: registration",
+            message=report.message,
             hardware_id=self.get_fully_qualified_name(),
-            values=[KeyValue(key=key, value=value) for key, value in report.values.items()])
+            values=[KeyValue(key=key, value=value) for key, value in report.values.items()],
+        )
         array = DiagnosticArray(status=[status])
         array.header.stamp = self.get_clock().now().to_msg()  # diagnostics describe "now", not a cloud
         self._diagnostics_publisher.publish(array)

@@ -96,9 +96,13 @@ class NodeStatus:
             values = {"latency p50 (ms)": f"{p50:.1f}", "latency p95 (ms)": f"{p95:.1f}"}
         core = float(np.mean(self._core_seconds))
         node = float(np.mean(self._node_seconds))
-        values.update({"registration mean (ms)": f"{core * 1e3:.1f}",
-                       "node overhead mean (ms)": f"{node * 1e3:.2f}",
-                       "node overhead / registration": f"{node / core:.4f}" if core > 0 else "nan"})
+        values.update(
+            {
+                "registration mean (ms)": f"{core * 1e3:.1f}",
+                "node overhead mean (ms)": f"{node * 1e3:.2f}",
+                "node overhead / registration": f"{node / core:.4f}" if core > 0 else "nan",
+            }
+        )
         return values
 
     def _result_values(self) -> dict[str, str]:
@@ -106,9 +110,14 @@ class NodeStatus:
         if outcome is None or outcome.result is None:
             return {}
         result = outcome.result
-        return {"last rms": f"{result.rms:.6g}", "last scale": f"{result.similarity.scale:.6g}",
-                "last iterations": str(sum(result.iterations)), "last converged": str(result.converged),
-                "last stamp (ns)": str(outcome.stamp_ns), "warm started": str(outcome.warm_started)}
+        return {
+            "last rms": f"{result.rms:.6g}",
+            "last scale": f"{result.similarity.scale:.6g}",
+            "last iterations": str(sum(result.iterations)),
+            "last converged": str(result.converged),
+            "last stamp (ns)": str(outcome.stamp_ns),
+            "warm started": str(outcome.warm_started),
+        }
 
     def _level(self, has_model: bool) -> tuple[int, str]:
         if self._consecutive_rejections >= ERROR_AFTER_REJECTIONS:

@@ -41,9 +41,16 @@ OUTPUT_TOPICS: dict[str, str] = {
 # Every topic except ``aligned`` is produced for every registered pair.
 ALWAYS_PUBLISHED = ("transform", "scale", "rms", "similarity")
 _NEEDED_TYPES = (
-    "builtin_interfaces/msg/Time", "std_msgs/msg/Header", "geometry_msgs/msg/Vector3",
-    "geometry_msgs/msg/Quaternion", "geometry_msgs/msg/Transform", "std_msgs/msg/MultiArrayDimension",
-    "std_msgs/msg/MultiArrayLayout", "sensor_msgs/msg/PointField", *OUTPUT_TOPICS.values())
+    "builtin_interfaces/msg/Time",
+    "std_msgs/msg/Header",
+    "geometry_msgs/msg/Vector3",
+    "geometry_msgs/msg/Quaternion",
+    "geometry_msgs/msg/Transform",
+    "std_msgs/msg/MultiArrayDimension",
+    "std_msgs/msg/MultiArrayLayout",
+    "sensor_msgs/msg/PointField",
+    *OUTPUT_TOPICS.values(),
+)
 
 
 @dataclass(frozen=True)
@@ -64,12 +71,21 @@ class MessageTypes:
 
     def point_cloud(self, parts: CloudParts, header: Any) -> Any:
         field_class = self["sensor_msgs/msg/PointField"]
-        fields = [field_class(name=f.name, offset=f.offset, datatype=f.datatype, count=f.count)
-                  for f in parts.fields]
+        fields = [
+            field_class(name=f.name, offset=f.offset, datatype=f.datatype, count=f.count)
+            for f in parts.fields
+        ]
         return self["sensor_msgs/msg/PointCloud2"](
-            header=header, height=parts.height, width=parts.width, fields=fields,
-            is_bigendian=parts.is_bigendian, point_step=parts.point_step, row_step=parts.row_step,
-            data=self.uint8_array(parts.data), is_dense=parts.is_dense)
+            header=header,
+            height=parts.height,
+            width=parts.width,
+            fields=fields,
+            is_bigendian=parts.is_bigendian,
+            point_step=parts.point_step,
+            row_step=parts.row_step,
+            data=self.uint8_array(parts.data),
+            is_dense=parts.is_dense,
+        )
 
 
 def _rclpy_array(typecode: str, dtype: type) -> Callable[[np.ndarray], array.array]:
@@ -77,10 +93,12 @@ def _rclpy_array(typecode: str, dtype: type) -> Callable[[np.ndarray], array.arr
 
     (Bytes, lists and memoryviews go through per-element checks instead: see docs/node.md.)
     """
+
     def convert(values: np.ndarray) -> array.array:
         out = array.array(typecode)
         out.frombytes(memoryview(np.ascontiguousarray(values, dtype=dtype)).cast("B"))
         return out
+
     return convert
 
 
@@ -102,9 +120,11 @@ def rosbags_message_types(typestore: Any = None) -> MessageTypes:
 
         typestore = get_typestore(Stores.ROS2_JAZZY)
     classes = {name: typestore.types[name] for name in _NEEDED_TYPES}
-    return MessageTypes(classes,
-                        lambda values: np.ascontiguousarray(values, dtype=np.uint8),
-                        lambda values: np.ascontiguousarray(values, dtype=np.float64))
+    return MessageTypes(
+        classes,
+        lambda values: np.ascontiguousarray(values, dtype=np.uint8),
+        lambda values: np.ascontiguousarray(values, dtype=np.float64),
+    )
 
 
 def transform_stamped(similarity: Similarity, header: Any, child_frame_id: str, types: MessageTypes) -> Any:
@@ -112,10 +132,13 @@ def transform_stamped(similarity: Similarity, header: Any, child_frame_id: str, 
     x, y, z, w = Similarity(1.0, rotation, translation).quaternion()
     transform = types["geometry_msgs/msg/Transform"](
         translation=types["geometry_msgs/msg/Vector3"](
-            x=float(translation[0]), y=float(translation[1]), z=float(translation[2])),
-        rotation=types["geometry_msgs/msg/Quaternion"](x=float(x), y=float(y), z=float(z), w=float(w)))
+            x=float(translation[0]), y=float(translation[1]), z=float(translation[2])
+        ),
+        rotation=types["geometry_msgs/msg/Quaternion"](x=float(x), y=float(y), z=float(z), w=float(w)),
+    )
     return types["geometry_msgs/msg/TransformStamped"](
-        header=header, child_frame_id=child_frame_id, transform=transform)
+        header=header, child_frame_id=child_frame_id, transform=transform
+    )
 
 
 def _as_3d(similarity: Similarity) -> tuple[np.ndarray, np.ndarray]:
@@ -130,19 +153,25 @@ def _as_3d(similarity: Similarity) -> tuple[np.ndarray, np.ndarray]:
 
 def similarity_matrix(similarity: Similarity, types: MessageTypes) -> Any:
     size = similarity.dim + 1
-    dims = [types["std_msgs/msg/MultiArrayDimension"](label="rows", size=size, stride=size * size),
-            types["std_msgs/msg/MultiArrayDimension"](label="cols", size=size, stride=size)]
+    dims = [
+        types["std_msgs/msg/MultiArrayDimension"](label="rows", size=size, stride=size * size),
+        types["std_msgs/msg/MultiArrayDimension"](label="cols", size=size, stride=size),
+    ]
     layout = types["std_msgs/msg/MultiArrayLayout"](dim=dims, data_offset=0)
     return types["std_msgs/msg/Float64MultiArray"](
-        layout=layout, data=types.float64_array(similarity.matrix().reshape(-1)))
+        layout=layout, data=types.float64_array(similarity.matrix().reshape(-1))
+    )
 
 
 def float64(value: float, types: MessageTypes) -> Any:
     return types["std_msgs/msg/Float64"](data=float(value))
 
 
-def build_outputs(outcome: PairOutcome, types: MessageTypes, topics: tuple[str, ...] = ALWAYS_PUBLISHED,
-                  ) -> dict[str, Any]:
+def build_outputs(
+    outcome: PairOutcome,
+    types: MessageTypes,
+    topics: tuple[str, ...] = ALWAYS_PUBLISHED,
+) -> dict[str, Any]:
     """Messages for the requested topic suffixes (subset of OUTPUT_TOPICS) of a registered pair.
 
     Every message carries the data cloud's stamp; frames come from the clouds.
@@ -156,12 +185,16 @@ def build_outputs(outcome: PairOutcome, types: MessageTypes, topics: tuple[str, 
     similarity = outcome.result.similarity
     builders: dict[str, Callable[[], Any]] = {
         "transform": lambda: transform_stamped(
-            similarity, types.header(outcome.stamp_ns, outcome.model_frame), outcome.data_frame, types),
+            similarity, types.header(outcome.stamp_ns, outcome.model_frame), outcome.data_frame, types
+        ),
         "scale": lambda: float64(similarity.scale, types),
         "rms": lambda: float64(outcome.result.rms, types),
         "similarity": lambda: similarity_matrix(similarity, types),
         "aligned": lambda: aligned_cloud(
-            outcome.data_msg, similarity, outcome.dims,
-            lambda parts: types.point_cloud(parts, types.header(outcome.stamp_ns, outcome.model_frame))),
+            outcome.data_msg,
+            similarity,
+            outcome.dims,
+            lambda parts: types.point_cloud(parts, types.header(outcome.stamp_ns, outcome.model_frame)),
+        ),
     }
     return {topic: builders[topic]() for topic in topics}

@@ -24,7 +24,9 @@ PAIRING_MODES: tuple[str, ...] = ("latest_model", "synchronized")
 
 
 class Pairer(Generic[ModelT, DataT]):
-    def __init__(self, mode: str = "latest_model", tolerance_sec: float = 0.05, buffer_size: int = 10) -> None:
+    def __init__(
+        self, mode: str = "latest_model", tolerance_sec: float = 0.05, buffer_size: int = 10
+    ) -> None:
         if mode not in PAIRING_MODES:
             raise ValueError(f"pairing mode must be one of {', '.join(PAIRING_MODES)}, got {mode!r}")
         if not tolerance_sec >= 0:

@@ -38,51 +38,76 @@ SPECS: dict[str, ParameterSpec] = {
     "model_qos": ParameterSpec(
         "QoS of the model subscription: sensor_data (best effort, depth 5), reliable (depth 5), or "
         "transient_local (reliable, transient local, depth 1: a latched map)",
-        choices=MODEL_QOS_CHOICES, read_only=True),
-    "data_qos": ParameterSpec("QoS of the data subscription: sensor_data or reliable (depth 5)",
-                              choices=DATA_QOS_CHOICES, read_only=True),
-    "diagnostics_period": ParameterSpec("seconds between /diagnostics messages",
-                                        float_range=(0.1, 60.0), read_only=True),
+        choices=MODEL_QOS_CHOICES,
+        read_only=True,
+    ),
+    "data_qos": ParameterSpec(
+        "QoS of the data subscription: sensor_data or reliable (depth 5)",
+        choices=DATA_QOS_CHOICES,
+        read_only=True,
+    ),
+    "diagnostics_period": ParameterSpec(
+        "seconds between /diagnostics messages", float_range=(0.1, 60.0), read_only=True
+    ),
     "pairing": ParameterSpec(
         "latest_model: each data cloud against the newest model (map-to-scan); synchronized: pairs"
-        " by header stamp within sync_tolerance (two sensors)", choices=PAIRING_MODES),
-    "sync_tolerance": ParameterSpec("largest stamp difference (s) of a synchronized pair",
-                                    float_range=(0.0, 10.0)),
+        " by header stamp within sync_tolerance (two sensors)",
+        choices=PAIRING_MODES,
+    ),
+    "sync_tolerance": ParameterSpec(
+        "largest stamp difference (s) of a synchronized pair", float_range=(0.0, 10.0)
+    ),
     "dims": ParameterSpec("2: register x y only (planar scans); 3: x y z", int_range=(2, 3)),
     "max_points": ParameterSpec(
         "cap on points per cloud (random subset above it) to bound latency; 0 = no cap",
-        int_range=(0, 100_000_000)),
+        int_range=(0, 100_000_000),
+    ),
     "warm_start": ParameterSpec("start each registration from the previous converged estimate"),
     "model_frame": ParameterSpec("expected frame id of model clouds; empty = accept any"),
     "data_frame": ParameterSpec("expected frame id of data clouds; empty = accept any"),
     "publish_aligned": ParameterSpec(
-        "publish ~/aligned (data cloud in the model frame) when it has subscribers"),
+        "publish ~/aligned (data cloud in the model frame) when it has subscribers"
+    ),
     # algorithm options (frisicp_core.RegistrationConfig / ConvergenceCriteria)
-    "method": ParameterSpec("algorithm: frisicp (bidirectional, free scale), icp (s = 1), scale-icp,"
-                            " bounded-icp", choices=tuple(m.value for m in Method)),
+    "method": ParameterSpec(
+        "algorithm: frisicp (bidirectional, free scale), icp (s = 1), scale-icp, bounded-icp",
+        choices=tuple(m.value for m in Method),
+    ),
     "levels": ParameterSpec("sparse-to-dense levels", int_range=(1, 10)),
     "coarsest_points": ParameterSpec("points on the coarsest level", int_range=(10, 10_000_000)),
     "max_iterations": ParameterSpec("iteration cap per level", int_range=(1, 100_000)),
     "relative_motion": ParameterSpec(
         "convergence: motion between iterations relative to the model's RMS radius (finest level)",
-        float_range=(0.0, 1.0)),
-    "relative_rmse": ParameterSpec("convergence: relative change of the error between iterations",
-                                   float_range=(0.0, 1.0)),
-    "coarse_relative_motion": ParameterSpec("convergence motion threshold on the coarse levels",
-                                            float_range=(0.0, 1.0)),
-    "overlap": ParameterSpec("fraction (0, 1] of closest correspondences kept (trimming); 1 = all",
-                             float_range=(0.0, 1.0)),
+        float_range=(0.0, 1.0),
+    ),
+    "relative_rmse": ParameterSpec(
+        "convergence: relative change of the error between iterations", float_range=(0.0, 1.0)
+    ),
+    "coarse_relative_motion": ParameterSpec(
+        "convergence motion threshold on the coarse levels", float_range=(0.0, 1.0)
+    ),
+    "overlap": ParameterSpec(
+        "fraction (0, 1] of closest correspondences kept (trimming); 1 = all", float_range=(0.0, 1.0)
+    ),
     "max_distance": ParameterSpec(
         "drop correspondences farther than this many times the median distance; 0 = keep all",
-        float_range=(0.0, 1e6)),
-    "initialization": ParameterSpec("start without warm start: identity, moments, principal-axes",
-                                    choices=tuple(i.value for i in Initialization)),
-    "acceleration": ParameterSpec("Anderson acceleration of the iterations (kept only when it lowers the error)"),
+        float_range=(0.0, 1e6),
+    ),
+    "initialization": ParameterSpec(
+        "start without warm start: identity, moments, principal-axes",
+        choices=tuple(i.value for i in Initialization),
+    ),
+    "acceleration": ParameterSpec(
+        "Anderson acceleration of the iterations (kept only when it lowers the error)"
+    ),
     "seed": ParameterSpec("seed of the random down-sampling", int_range=(0, 2**31 - 1)),
     "backend": ParameterSpec("KD-tree library: auto, pykdtree, scipy", choices=("auto", "pykdtree", "scipy")),
 }
-NODE_DEFAULTS: dict[str, Any] = {"model_qos": "sensor_data", "data_qos": "sensor_data",
-                                 "diagnostics_period": 1.0}
+NODE_DEFAULTS: dict[str, Any] = {
+    "model_qos": "sensor_data",
+    "data_qos": "sensor_data",
+    "diagnostics_period": 1.0,
+}
 
 
 def defaults() -> dict[str, Any]:
@@ -97,8 +122,9 @@ def descriptor(name: str, spec: ParameterSpec) -> ParameterDescriptor:
     if spec.int_range:
         desc.integer_range = [IntegerRange(from_value=spec.int_range[0], to_value=spec.int_range[1], step=1)]
     if spec.float_range:
-        desc.floating_point_range = [FloatingPointRange(
-            from_value=spec.float_range[0], to_value=spec.float_range[1], step=0.0)]
+        desc.floating_point_range = [
+            FloatingPointRange(from_value=spec.float_range[0], to_value=spec.float_range[1], step=0.0)
+        ]
     if spec.choices:
         desc.additional_constraints = "one of: " + ", ".join(spec.choices)
     return desc

@@ -27,7 +27,6 @@ from frisicp_core import (
 from .pairing import PAIRING_MODES
 from .pointcloud2 import CloudError, check_dims, cloud_to_points, stamp_ns
 
-
 # Algorithm defaults follow the core's; config/frisicp.yaml repeats them (a test compares).
 _CORE_DEFAULTS = RegistrationConfig()
 # RegistrationConfig fields that are not parameters: warm start and NaN handling are the pipeline's.
@@ -83,15 +82,25 @@ class PipelineSettings:
     def registration_config(self, initial: Similarity | None = None) -> RegistrationConfig:
         """The core configuration; raises ValueError (with the core's reason) for bad options."""
         criteria = ConvergenceCriteria(
-            max_iterations=self.max_iterations, relative_motion=self.relative_motion,
-            relative_rmse=self.relative_rmse, coarse_relative_motion=self.coarse_relative_motion)
+            max_iterations=self.max_iterations,
+            relative_motion=self.relative_motion,
+            relative_rmse=self.relative_rmse,
+            coarse_relative_motion=self.coarse_relative_motion,
+        )
         return RegistrationConfig(
-            method=Method(self.method), levels=self.levels, coarsest_points=self.coarsest_points,
-            criteria=criteria, overlap=self.overlap, max_distance=self.max_distance or None,
-            initialization=Initialization(self.initialization), initial=initial,
+            method=Method(self.method),
+            levels=self.levels,
+            coarsest_points=self.coarsest_points,
+            criteria=criteria,
+            overlap=self.overlap,
+            max_distance=self.max_distance or None,
+            initialization=Initialization(self.initialization),
+            initial=initial,
             acceleration=self.acceleration,
             drop_nonfinite=False,  # cloud_to_points already dropped NaN/Inf points
-            seed=self.seed, backend=self.backend)
+            seed=self.seed,
+            backend=self.backend,
+        )
 
     @classmethod
     def names(cls) -> tuple[str, ...]:
@@ -162,15 +171,22 @@ class RegistrationPipeline:
     def update_settings(self, settings: PipelineSettings) -> None:
         """New settings; anything they invalidate (point caps, dims) is forgotten."""
         if (settings.dims, settings.max_points, settings.seed) != (
-                self.settings.dims, self.settings.max_points, self.settings.seed):
+            self.settings.dims,
+            self.settings.max_points,
+            self.settings.seed,
+        ):
             self.reset()
         self.settings = settings
 
     def process(self, model_msg: Any, data_msg: Any) -> PairOutcome:
         settings = self.settings
-        outcome = PairOutcome(stamp_ns=stamp_ns(data_msg), model_frame=str(model_msg.header.frame_id),
-                              data_frame=str(data_msg.header.frame_id), dims=settings.dims,
-                              data_msg=data_msg)
+        outcome = PairOutcome(
+            stamp_ns=stamp_ns(data_msg),
+            model_frame=str(model_msg.header.frame_id),
+            data_frame=str(data_msg.header.frame_id),
+            dims=settings.dims,
+            data_msg=data_msg,
+        )
         frame_problem = self._check_frames(outcome.model_frame, outcome.data_frame)
         if frame_problem:
             return replace(outcome, rejection=frame_problem, rejected_input="pair")
@@ -192,14 +208,24 @@ class RegistrationPipeline:
             # still reported per pair (with its type) instead of killing the node's worker.
             self._previous = None
             reason = str(err) if isinstance(err, ValueError) else f"unexpected {type(err).__name__}: {err}"
-            return replace(outcome, rejection=f"registration: {reason}", rejected_input="pair",
-                           timings=Timings(converted - started, time.perf_counter() - converted))
+            return replace(
+                outcome,
+                rejection=f"registration: {reason}",
+                rejected_input="pair",
+                timings=Timings(converted - started, time.perf_counter() - converted),
+            )
         timings = Timings(converted - started, time.perf_counter() - converted)
         # A diverged estimate would poison the next start: only a converged one is kept.
         self._previous = result.similarity if result.converged else None
         self._remember_frames(outcome.model_frame, outcome.data_frame)
-        return replace(outcome, result=result, data_points=data_points, model_points=model_points,
-                       timings=timings, warm_started=initial is not None)
+        return replace(
+            outcome,
+            result=result,
+            data_points=data_points,
+            model_points=model_points,
+            timings=timings,
+            warm_started=initial is not None,
+        )
 
     def _model_points(self, model_msg: Any) -> np.ndarray:
         """Convert the model once per message: in latest_model mode it is reused for every scan."""
@@ -217,15 +243,19 @@ class RegistrationPipeline:
         but the warm start, which relates the old frames, is dropped.
         """
         settings = self.settings
-        for side, frame, expected in (("model", model_frame, settings.model_frame),
-                                      ("data", data_frame, settings.data_frame)):
+        for side, frame, expected in (
+            ("model", model_frame, settings.model_frame),
+            ("data", data_frame, settings.data_frame),
+        ):
             if expected and frame != expected:
                 return f"frame mismatch: {side} cloud is in '{frame}', expected '{expected}' ({side}_frame)"
             seen = self._frames.get(side)
             if seen is not None and frame != seen:
                 if settings.pairing == "synchronized":
-                    return (f"frame mismatch: {side} cloud is in '{frame}' but this {side} stream was in"
-                            f" '{seen}' (synchronized pairing needs fixed frames; call ~/reset to accept)")
+                    return (
+                        f"frame mismatch: {side} cloud is in '{frame}' but this {side} stream was in"
+                        f" '{seen}' (synchronized pairing needs fixed frames; call ~/reset to accept)"
+                    )
                 self._previous = None
         return None
 

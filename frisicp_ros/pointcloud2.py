@@ -89,26 +89,34 @@ def coordinate_views(msg: Any, dims: int = 3) -> list[np.ndarray]:
     if buffer.size != row_step * height:
         raise CloudError(
             f"malformed cloud: len(data) = {buffer.size} but row_step * height = {row_step} * {height}"
-            f" = {row_step * height}")
+            f" = {row_step * height}"
+        )
     if point_step <= 0:
         raise CloudError(f"malformed cloud: point_step must be positive, got {point_step}")
     if row_step < width * point_step:
         raise CloudError(
-            f"malformed cloud: row_step {row_step} < width * point_step = {width} * {point_step}")
+            f"malformed cloud: row_step {row_step} < width * point_step = {width} * {point_step}"
+        )
     fields = _validated_fields(msg.fields, point_step)
     byte_order = ">" if msg.is_bigendian else "<"
     views = []
     for name in COORDINATE_NAMES[:dims]:
         if name not in fields:
-            raise CloudError(
-                f"malformed cloud: no '{name}' field (fields: {', '.join(fields) or 'none'})")
+            raise CloudError(f"malformed cloud: no '{name}' field (fields: {', '.join(fields) or 'none'})")
         field = fields[name]
         dtype = DATATYPES[field.datatype].newbyteorder(byte_order)
         if height * width == 0:  # numpy refuses strided views of an empty buffer
             views.append(np.empty((height, width), dtype=dtype))
             continue
-        views.append(np.ndarray(shape=(height, width), dtype=dtype, buffer=buffer,
-                                offset=field.offset, strides=(row_step, point_step)))
+        views.append(
+            np.ndarray(
+                shape=(height, width),
+                dtype=dtype,
+                buffer=buffer,
+                offset=field.offset,
+                strides=(row_step, point_step),
+            )
+        )
     return views
 
 
@@ -126,7 +134,8 @@ def _validated_fields(fields: Sequence[PointFieldLike], point_step: int) -> dict
         if field.offset < 0 or end > point_step:
             raise CloudError(
                 f"malformed cloud: field '{field.name}' spans bytes {field.offset}..{end} but point_step"
-                f" is {point_step} (point_step too small)")
+                f" is {point_step} (point_step too small)"
+            )
         extents.append((int(field.offset), end, field.name))
         by_name[field.name] = field
     extents.sort()
@@ -161,8 +170,9 @@ def cloud_to_points(msg: Any, dims: int = 3, max_points: int | None = None, seed
     return np.ascontiguousarray(points)
 
 
-def aligned_cloud(msg: Any, similarity: Similarity, dims: int,
-                  make_cloud: Callable[[CloudParts], CloudT]) -> CloudT:
+def aligned_cloud(
+    msg: Any, similarity: Similarity, dims: int, make_cloud: Callable[[CloudParts], CloudT]
+) -> CloudT:
     """``msg`` with x, y(, z) mapped through ``similarity``; every other byte kept.
 
     A copy of the original data buffer is rewritten in place, so intensity, rgb, ring, time,
@@ -185,10 +195,18 @@ def aligned_cloud(msg: Any, similarity: Similarity, dims: int,
             info = np.iinfo(view.dtype)
             values = np.clip(np.rint(np.nan_to_num(values)), info.min, info.max)
         view[...] = values
-    return make_cloud(CloudParts(
-        height=int(msg.height), width=int(msg.width), fields=field_specs(msg.fields),
-        is_bigendian=bool(msg.is_bigendian), point_step=int(msg.point_step),
-        row_step=int(msg.row_step), data=data, is_dense=bool(msg.is_dense)))
+    return make_cloud(
+        CloudParts(
+            height=int(msg.height),
+            width=int(msg.width),
+            fields=field_specs(msg.fields),
+            is_bigendian=bool(msg.is_bigendian),
+            point_step=int(msg.point_step),
+            row_step=int(msg.row_step),
+            data=data,
+            is_dense=bool(msg.is_dense),
+        )
+    )
 
 
 class _CloudOverData:
@@ -204,8 +222,12 @@ def field_specs(fields: Sequence[PointFieldLike]) -> tuple[FieldSpec, ...]:
     return tuple(FieldSpec(str(f.name), int(f.offset), int(f.datatype), int(f.count)) for f in fields)
 
 
-def points_to_parts(points: np.ndarray, extra: dict[str, np.ndarray] | None = None,
-                    datatype: int = FLOAT32, big_endian: bool = False) -> CloudParts:
+def points_to_parts(
+    points: np.ndarray,
+    extra: dict[str, np.ndarray] | None = None,
+    datatype: int = FLOAT32,
+    big_endian: bool = False,
+) -> CloudParts:
     """An unorganized cloud of x, y(, z) in ``datatype`` plus ``extra`` per-point fields.
 
     ``extra`` maps a field name to an (N,) array; its dtype picks the PointField datatype.
@@ -216,7 +238,8 @@ def points_to_parts(points: np.ndarray, extra: dict[str, np.ndarray] | None = No
         raise ValueError(f"points must be (N, 2) or (N, 3), got {pts.shape}")
     byte_order = ">" if big_endian else "<"
     columns: list[tuple[str, np.dtype, np.ndarray]] = [
-        (name, DATATYPES[datatype], pts[:, i]) for i, name in enumerate(COORDINATE_NAMES[: pts.shape[1]])]
+        (name, DATATYPES[datatype], pts[:, i]) for i, name in enumerate(COORDINATE_NAMES[: pts.shape[1]])
+    ]
     codes = {dtype: code for code, dtype in DATATYPES.items()}
     for name, values in (extra or {}).items():
         values = np.asarray(values)
@@ -228,9 +251,16 @@ def points_to_parts(points: np.ndarray, extra: dict[str, np.ndarray] | None = No
     for name, _, values in columns:
         table[name] = values
     fields = tuple(FieldSpec(name, record.fields[name][1], codes[dtype]) for name, dtype, _ in columns)
-    return CloudParts(height=1, width=pts.shape[0], fields=fields, is_bigendian=big_endian,
-                      point_step=record.itemsize, row_step=record.itemsize * pts.shape[0],
-                      data=table.view(np.uint8), is_dense=bool(np.isfinite(pts).all()))
+    return CloudParts(
+        height=1,
+        width=pts.shape[0],
+        fields=fields,
+        is_bigendian=big_endian,
+        point_step=record.itemsize,
+        row_step=record.itemsize * pts.shape[0],
+        data=table.view(np.uint8),
+        is_dense=bool(np.isfinite(pts).all()),
+    )
 
 
 def stamp_ns(msg: Any) -> int:

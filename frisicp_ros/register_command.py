@@ -22,16 +22,28 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("data", help="point cloud to move")
     parser.add_argument("model", help="point cloud that stays fixed")
     parser.add_argument("--method", choices=[m.value for m in Method], default=Method.FRISICP.value)
-    parser.add_argument("--overlap", type=float, default=1.0,
-                        help="fraction of each cloud expected to have a counterpart (trimming); 1 = all")
-    parser.add_argument("--robust", action="store_true",
-                        help="preset for partial overlap: --overlap 0.8")
-    parser.add_argument("--init", choices=[i.value for i in Initialization],
-                        default=Initialization.PRINCIPAL_AXES.value, help="starting guess")
-    parser.add_argument("--paper", action="store_true",
-                        help="run the published algorithm exactly (identity start, no trimming)")
+    parser.add_argument(
+        "--overlap",
+        type=float,
+        default=1.0,
+        help="fraction of each cloud expected to have a counterpart (trimming); 1 = all",
+    )
+    parser.add_argument("--robust", action="store_true", help="preset for partial overlap: --overlap 0.8")
+    parser.add_argument(
+        "--init",
+        choices=[i.value for i in Initialization],
+        default=Initialization.PRINCIPAL_AXES.value,
+        help="starting guess",
+    )
+    parser.add_argument(
+        "--paper",
+        action="store_true",
+        help="run the published algorithm exactly (identity start, no trimming)",
+    )
     parser.add_argument("--levels", type=int, default=3, help="sparse-to-dense levels")
-    parser.add_argument("--drop-nonfinite", action="store_true", help="drop NaN/Inf points instead of failing")
+    parser.add_argument(
+        "--drop-nonfinite", action="store_true", help="drop NaN/Inf points instead of failing"
+    )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.set_defaults(func=run)
 
@@ -41,8 +53,9 @@ def config_from_args(args: argparse.Namespace) -> RegistrationConfig:
     if args.paper:
         return RegistrationConfig.paper(args.method, **settings)
     overlap = 0.8 if args.robust and args.overlap == 1.0 else args.overlap
-    return RegistrationConfig(method=Method(args.method), overlap=overlap,
-                              initialization=Initialization(args.init), **settings)
+    return RegistrationConfig(
+        method=Method(args.method), overlap=overlap, initialization=Initialization(args.init), **settings
+    )
 
 
 def result_summary(result: RegistrationResult) -> dict[str, object]:
@@ -81,7 +94,9 @@ def run(args: argparse.Namespace) -> int:
         if "quaternion_xyzw" in summary:
             print(f"quaternion   {np.array(summary['quaternion_xyzw'])}  (x, y, z, w)")
         print(f"translation  {result.similarity.translation}")
-    print(f"rms          {result.rms:.6g}  (forward {result.forward_rms:.6g}, backward {result.backward_rms:.6g})")
+    print(
+        f"rms          {result.rms:.6g}  (forward {result.forward_rms:.6g}, backward {result.backward_rms:.6g})"
+    )
     print(f"iterations   {sum(result.iterations)}  per level {list(result.iterations)}")
     print(f"converged    {result.converged}")
     print(f"seconds      {result.seconds:.4f}")

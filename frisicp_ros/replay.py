@@ -56,41 +56,63 @@ def declare_replay_parameters(node: Node) -> ReplayOptions | None:
     Raises ValueError when the bag cannot be replayed (unreadable, topics missing or not clouds),
     so the node fails at start-up with the reason, as for any invalid parameter.
     """
-    def declare(name: str, default: object, description: str, float_range: tuple[float, float] | None = None,
-                ) -> object:
+
+    def declare(
+        name: str,
+        default: object,
+        description: str,
+        float_range: tuple[float, float] | None = None,
+    ) -> object:
         descriptor = ParameterDescriptor(name=name, description=description, read_only=True)
         if float_range:
-            descriptor.floating_point_range = [FloatingPointRange(
-                from_value=float_range[0], to_value=float_range[1], step=0.0)]
+            descriptor.floating_point_range = [
+                FloatingPointRange(from_value=float_range[0], to_value=float_range[1], step=0.0)
+            ]
         if isinstance(default, int) and not isinstance(default, bool):
             descriptor.integer_range = [IntegerRange(from_value=0, to_value=1000, step=1)]
         return node.declare_parameter(name, default, descriptor).value
 
     bag = str(declare("bag", "", "replay this bag instead of subscribing ('' = live)"))
-    rate = float(declare("bag_rate", 1.0, "replay speed: 1 = recorded rate, 0 = as fast as possible",
-                         (0.0, 1000.0)))
+    rate = float(
+        declare("bag_rate", 1.0, "replay speed: 1 = recorded rate, 0 = as fast as possible", (0.0, 1000.0))
+    )
     delay = float(declare("bag_delay", 1.0, "seconds to wait before replaying (discovery)", (0.0, 3600.0)))
-    wait_for_subscribers = int(declare("bag_wait_for_subscribers", 0,
-                                       "wait for this many ~/transform subscribers before replaying"))
+    wait_for_subscribers = int(
+        declare("bag_wait_for_subscribers", 0, "wait for this many ~/transform subscribers before replaying")
+    )
     exit_on_end = bool(declare("bag_exit_on_end", True, "shut down when the bag is done (false: idle)"))
     if not bag:
         return None
-    options = ReplayOptions(bag, node.resolve_topic_name("model"), node.resolve_topic_name("data"),
-                            rate, delay, wait_for_subscribers, exit_on_end)
+    options = ReplayOptions(
+        bag,
+        node.resolve_topic_name("model"),
+        node.resolve_topic_name("data"),
+        rate,
+        delay,
+        wait_for_subscribers,
+        exit_on_end,
+    )
     try:
         with open_bag(bag) as reader:
             for topic in (options.model_topic, options.data_topic):
                 require_pointcloud2_topic(reader, topic)
     except BagError as err:
-        raise ValueError(f"bag: {err} (choose the bag's topics with -r model:=TOPIC -r data:=TOPIC)") from None
+        raise ValueError(
+            f"bag: {err} (choose the bag's topics with -r model:=TOPIC -r data:=TOPIC)"
+        ) from None
     return options
 
 
 class BagReplay:
     """A thread that replays the bag through ``pipeline`` and ``publish``; ``stop()`` ends it."""
 
-    def __init__(self, node: Node, options: ReplayOptions, pipeline: RegistrationPipeline,
-                 publish: Callable[[PairOutcome], None]) -> None:
+    def __init__(
+        self,
+        node: Node,
+        options: ReplayOptions,
+        pipeline: RegistrationPipeline,
+        publish: Callable[[PairOutcome], None],
+    ) -> None:
         self.node = node
         self.options = options
         self.pipeline = pipeline
@@ -111,7 +133,10 @@ class BagReplay:
         options = self.options
         if options.wait_for_subscribers:
             logger.info(f"bag replay waits for {options.wait_for_subscribers} subscriber(s) of ~/transform")
-        while self.node.count_subscribers(self.node.resolve_topic_name("~/transform")) < options.wait_for_subscribers:
+        while (
+            self.node.count_subscribers(self.node.resolve_topic_name("~/transform"))
+            < options.wait_for_subscribers
+        ):
             if self._stopping.wait(0.1):
                 return
         if self._stopping.wait(options.delay):
@@ -121,15 +146,23 @@ class BagReplay:
         started = time.monotonic()
         try:
             with open_bag(options.bag) as reader:
-                reading = PairReading(reader, options.model_topic, options.data_topic,
-                                      Pairer(settings.pairing, settings.sync_tolerance))
+                reading = PairReading(
+                    reader,
+                    options.model_topic,
+                    options.data_topic,
+                    Pairer(settings.pairing, settings.sync_tolerance),
+                )
                 first: tuple[int, float] | None = None  # (bag time, monotonic time) of the first output
                 for pair in reading:
                     outcome = self.pipeline.process(pair.model.cloud, pair.data.cloud)
                     # Outputs go out at their data clouds' recorded times (scaled by the rate),
                     # or as soon as computed when the registration is the slower of the two.
                     first = first or (pair.data.bag_ns, time.monotonic())
-                    due = first[1] + (pair.data.bag_ns - first[0]) / 1e9 / options.rate if options.rate > 0 else 0.0
+                    due = (
+                        first[1] + (pair.data.bag_ns - first[0]) / 1e9 / options.rate
+                        if options.rate > 0
+                        else 0.0
+                    )
                     if self._stopping.wait(max(0.0, due - time.monotonic())):
                         return
                     self.publish(outcome)

@@ -76,8 +76,15 @@ def standard_scenario(points: int = 1500) -> Scenario:
     sec = 1_000_000_000
     scenario = Scenario()
     models: dict[int, np.ndarray] = {}
-    plan = [("model", 1 * sec), ("data", 1 * sec), ("model", 2 * sec), ("data", 2 * sec),
-            ("data", 2 * sec + sec // 2), ("model", 3 * sec), ("data", 3 * sec)]
+    plan = [
+        ("model", 1 * sec),
+        ("data", 1 * sec),
+        ("model", 2 * sec),
+        ("data", 2 * sec),
+        ("data", 2 * sec + sec // 2),
+        ("model", 3 * sec),
+        ("data", 3 * sec),
+    ]
     last_model_ns = 0
     for k, (kind, stamp) in enumerate(plan):
         if kind == "model":
@@ -88,16 +95,25 @@ def standard_scenario(points: int = 1500) -> Scenario:
         truth = truth_for(len(scenario.truth))
         bag_ns = stamp + 5_000_000
         scenario.records.append(
-            CloudRecord(DATA_TOPIC, bag_ns, stamp, DATA_FRAME, data_cloud(models[last_model_ns], truth, k)))
+            CloudRecord(DATA_TOPIC, bag_ns, stamp, DATA_FRAME, data_cloud(models[last_model_ns], truth, k))
+        )
         scenario.truth[bag_ns] = truth
         scenario.source_model_ns[bag_ns] = last_model_ns
     return scenario
 
 
 def cloud_bytes(points: np.ndarray) -> bytes:
-    packed = np.zeros(len(points), dtype=np.dtype({
-        "names": [name for name, _ in FIELDS], "formats": ["<f4"] * len(FIELDS),
-        "offsets": [offset for _, offset in FIELDS], "itemsize": POINT_STEP}))
+    packed = np.zeros(
+        len(points),
+        dtype=np.dtype(
+            {
+                "names": [name for name, _ in FIELDS],
+                "formats": ["<f4"] * len(FIELDS),
+                "offsets": [offset for _, offset in FIELDS],
+                "itemsize": POINT_STEP,
+            }
+        ),
+    )
     packed["x"], packed["y"], packed["z"] = points[:, 0], points[:, 1], points[:, 2]
     packed["intensity"] = np.arange(len(points)) % 100
     return packed.tobytes()
@@ -106,24 +122,34 @@ def cloud_bytes(points: np.ndarray) -> bytes:
 # --- rosbags writers -------------------------------------------------------------------------
 
 
-def rosbags_cloud(typestore, record: CloudRecord, ros1: bool = False):  # noqa: ANN001, ANN201
+def rosbags_cloud(typestore, record: CloudRecord, ros1: bool = False):
     types = typestore.types  # rosbags spells ROS 1 types with "/msg/" too
     time_type = types["builtin_interfaces/msg/Time"]
     field_type = types["sensor_msgs/msg/PointField"]
     header_type = types["std_msgs/msg/Header"]
     stamp = time_type(sec=record.header_ns // 10**9, nanosec=record.header_ns % 10**9)
-    header = header_type(seq=0, stamp=stamp, frame_id=record.frame_id) if ros1 else header_type(
-        stamp=stamp, frame_id=record.frame_id)
+    header = (
+        header_type(seq=0, stamp=stamp, frame_id=record.frame_id)
+        if ros1
+        else header_type(stamp=stamp, frame_id=record.frame_id)
+    )
     data = np.frombuffer(cloud_bytes(record.points), dtype=np.uint8)
     return types["sensor_msgs/msg/PointCloud2"](
-        header=header, height=1, width=len(record.points),
+        header=header,
+        height=1,
+        width=len(record.points),
         fields=[field_type(name=n, offset=o, datatype=FLOAT32, count=1) for n, o in FIELDS],
-        is_bigendian=False, point_step=POINT_STEP, row_step=POINT_STEP * len(record.points),
-        data=data, is_dense=True)
+        is_bigendian=False,
+        point_step=POINT_STEP,
+        row_step=POINT_STEP * len(record.points),
+        data=data,
+        is_dense=True,
+    )
 
 
-def write_rosbag2(path: Path, records: Sequence[CloudRecord], storage: str = "sqlite3",
-                  extra_string_topic: bool = False) -> Path:
+def write_rosbag2(
+    path: Path, records: Sequence[CloudRecord], storage: str = "sqlite3", extra_string_topic: bool = False
+) -> Path:
     """A rosbag2 folder at ``path`` (storage "sqlite3" or "mcap") written by rosbags."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
@@ -135,13 +161,18 @@ def write_rosbag2(path: Path, records: Sequence[CloudRecord], storage: str = "sq
         for record in records:
             if record.topic not in connections:
                 connections[record.topic] = writer.add_connection(
-                    record.topic, "sensor_msgs/msg/PointCloud2", typestore=typestore)
+                    record.topic, "sensor_msgs/msg/PointCloud2", typestore=typestore
+                )
             raw = typestore.serialize_cdr(rosbags_cloud(typestore, record), "sensor_msgs/msg/PointCloud2")
             writer.write(connections[record.topic], record.bag_ns, raw)
         if extra_string_topic:
             string_type = typestore.types["std_msgs/msg/String"]
             conn = writer.add_connection(OTHER_TOPIC, "std_msgs/msg/String", typestore=typestore)
-            writer.write(conn, records[0].bag_ns, typestore.serialize_cdr(string_type(data="hi"), "std_msgs/msg/String"))
+            writer.write(
+                conn,
+                records[0].bag_ns,
+                typestore.serialize_cdr(string_type(data="hi"), "std_msgs/msg/String"),
+            )
     return path
 
 
@@ -156,10 +187,14 @@ def write_ros1_bag(path: Path, records: Sequence[CloudRecord]) -> Path:
         for record in records:
             if record.topic not in connections:
                 connections[record.topic] = writer.add_connection(
-                    record.topic, "sensor_msgs/msg/PointCloud2", typestore=typestore)
+                    record.topic, "sensor_msgs/msg/PointCloud2", typestore=typestore
+                )
             msg = rosbags_cloud(typestore, record, ros1=True)
-            writer.write(connections[record.topic], record.bag_ns,
-                         typestore.serialize_ros1(msg, "sensor_msgs/msg/PointCloud2"))
+            writer.write(
+                connections[record.topic],
+                record.bag_ns,
+                typestore.serialize_ros1(msg, "sensor_msgs/msg/PointCloud2"),
+            )
     return path
 
 
@@ -210,8 +245,10 @@ def write_mcap_ros2(path: Path, records: Sequence[CloudRecord], chunk_size: int 
         schema = writer.register_msgdef("sensor_msgs/msg/PointCloud2", POINTCLOUD2_MSGDEF)
         for record in records:
             message = {
-                "header": {"stamp": {"sec": record.header_ns // 10**9, "nanosec": record.header_ns % 10**9},
-                           "frame_id": record.frame_id},
+                "header": {
+                    "stamp": {"sec": record.header_ns // 10**9, "nanosec": record.header_ns % 10**9},
+                    "frame_id": record.frame_id,
+                },
                 "height": 1,
                 "width": len(record.points),
                 "fields": [{"name": n, "offset": o, "datatype": FLOAT32, "count": 1} for n, o in FIELDS],
@@ -221,7 +258,8 @@ def write_mcap_ros2(path: Path, records: Sequence[CloudRecord], chunk_size: int 
                 "data": cloud_bytes(record.points),
                 "is_dense": True,
             }
-            writer.write_message(record.topic, schema, message, log_time=record.bag_ns,
-                                 publish_time=record.bag_ns)
+            writer.write_message(
+                record.topic, schema, message, log_time=record.bag_ns, publish_time=record.bag_ns
+            )
         writer.finish()
     return path

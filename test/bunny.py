@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +17,7 @@ def bunny(name: str) -> np.ndarray:
     return _read_bunny(name).copy()
 
 
-@lru_cache(maxsize=None)
+@cache
 def _read_bunny(name: str) -> np.ndarray:
     return read_points(shared_file(f"bunny/{name}"))
 

@@ -16,8 +16,9 @@ from frisicp_ros.pointcloud2 import points_to_parts
 _ANGLE = np.deg2rad(20.0)
 _AXIS = np.array([0.3, 1.0, 0.2]) / np.linalg.norm([0.3, 1.0, 0.2])
 _SKEW = np.array([[0, -_AXIS[2], _AXIS[1]], [_AXIS[2], 0, -_AXIS[0]], [-_AXIS[1], _AXIS[0], 0]])
-TRUTH = Similarity(1.5, np.eye(3) + np.sin(_ANGLE) * _SKEW + (1 - np.cos(_ANGLE)) * _SKEW @ _SKEW,
-                   np.array([0.5, -1.0, 2.0]))
+TRUTH = Similarity(
+    1.5, np.eye(3) + np.sin(_ANGLE) * _SKEW + (1 - np.cos(_ANGLE)) * _SKEW @ _SKEW, np.array([0.5, -1.0, 2.0])
+)
 
 
 def ros_environment(domain_id: int) -> dict[str, str]:
@@ -40,8 +41,13 @@ def scene_messages(n: int = 2000, stamp_ns: int = 1_700_000_000_250_000_000):
     return model, cloud_message(data, "velodyne", stamp_ns, intensity=np.arange(n, dtype=np.float32))
 
 
-def wait_until(condition: Callable[[], bool], timeout: float, poll: float = 0.02,
-               action: Callable[[], None] | None = None, every: float = 0.5) -> bool:
+def wait_until(
+    condition: Callable[[], bool],
+    timeout: float,
+    poll: float = 0.02,
+    action: Callable[[], None] | None = None,
+    every: float = 0.5,
+) -> bool:
     """Poll ``condition`` up to ``timeout`` s, running ``action`` every ``every`` s (re-publishing)."""
     deadline = time.monotonic() + timeout
     next_action = 0.0

@@ -8,15 +8,18 @@ from frisicp_core import RegistrationConfig, bumpy_surface, register
 GOOD = bumpy_surface(500)
 
 
-@pytest.mark.parametrize("data, message", [
-    (np.empty((0, 3)), "empty"),
-    (GOOD[:3], "too few"),
-    (np.ones((50, 3)), "identical"),
-    (np.outer(np.linspace(0, 1, 50), [1.0, 2.0, 3.0]), "collinear"),
-    (np.zeros(10), "shape"),
-    (np.ones((10, 1)), "at least 2 coordinates"),
-    ([["a", "b", "c"]] * 5, "numeric"),
-])
+@pytest.mark.parametrize(
+    "data, message",
+    [
+        (np.empty((0, 3)), "empty"),
+        (GOOD[:3], "too few"),
+        (np.ones((50, 3)), "identical"),
+        (np.outer(np.linspace(0, 1, 50), [1.0, 2.0, 3.0]), "collinear"),
+        (np.zeros(10), "shape"),
+        (np.ones((10, 1)), "at least 2 coordinates"),
+        ([["a", "b", "c"]] * 5, "numeric"),
+    ],
+)
 def test_unusable_data_is_named(data, message):
     with pytest.raises(ValueError, match=message):
         register(data, GOOD)
@@ -56,11 +59,19 @@ def test_all_nan_is_empty_after_dropping():
         register(np.full((20, 3), np.nan), GOOD, RegistrationConfig(drop_nonfinite=True))
 
 
-@pytest.mark.parametrize("option", [
-    dict(overlap=0.0), dict(overlap=1.5), dict(levels=0), dict(max_distance=-1.0),
-    dict(coarsest_points=1), dict(method="gauss-newton"), dict(initialization="random"),
-    dict(backend="flann"),
-])
+@pytest.mark.parametrize(
+    "option",
+    [
+        dict(overlap=0.0),
+        dict(overlap=1.5),
+        dict(levels=0),
+        dict(max_distance=-1.0),
+        dict(coarsest_points=1),
+        dict(method="gauss-newton"),
+        dict(initialization="random"),
+        dict(backend="flann"),
+    ],
+)
 def test_invalid_options_are_refused_with_a_reason(option):
     with pytest.raises(ValueError):
         RegistrationConfig(**option)

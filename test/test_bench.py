@@ -97,12 +97,21 @@ def test_tiny_run_writes_tables_json_and_figures(tmp_path) -> None:
     placement, reference_rms = reference_placement(deformed, contour, angles=4)
     families = [
         Family("contour 1→1", "2-D", "u", contour, contour, true_pose=True),
-        Family("contour 2→1", "2-D", "u", placement.apply(deformed), contour, true_pose=False,
-               reference_rms=reference_rms),
+        Family(
+            "contour 2→1",
+            "2-D",
+            "u",
+            placement.apply(deformed),
+            contour,
+            true_pose=False,
+            reference_rms=reference_rms,
+        ),
         Family("surface", "3-D", "u", surface, surface, true_pose=True),
     ]
-    methods = [MethodSpec("frisicp", "FRISICP", core_method(RegistrationConfig.paper(Method.FRISICP))),
-               MethodSpec("scale-icp", "Zinßer", core_method(RegistrationConfig.paper(Method.SCALE_ICP)))]
+    methods = [
+        MethodSpec("frisicp", "FRISICP", core_method(RegistrationConfig.paper(Method.FRISICP))),
+        MethodSpec("scale-icp", "Zinßer", core_method(RegistrationConfig.paper(Method.SCALE_ICP))),
+    ]
     run = run_benchmark(families, methods, (0.3, 1.5), seed=0)
     assert len(run.records) == 3 * 2 * 2
     frisicp_true = [r for r in run.records if r.method == "frisicp" and r.family != "contour 2→1"]

@@ -74,11 +74,17 @@ def test_register_human_output_and_methods(tmp_path):
     assert done.returncode == 0 and "quaternion" in done.stdout and "converged    True" in done.stdout
 
 
-@pytest.mark.parametrize("content, message", [
-    (None, "no such file"),
-    (b"ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nend_header\n1\n", "cannot read it as PLY"),
-    (b"", "cannot read"),
-])
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        (None, "no such file"),
+        (
+            b"ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nend_header\n1\n",
+            "cannot read it as PLY",
+        ),
+        (b"", "cannot read"),
+    ],
+)
 def test_bad_files_exit_2_with_one_line_and_no_traceback(tmp_path, content, message):
     path = tmp_path / "broken.ply"
     if content is not None:
@@ -95,7 +101,9 @@ def test_nan_points_are_refused_unless_dropping_was_asked_for(tmp_path):
     np.save(tmp_path / "model.npy", MODEL)
     done = run("register", str(tmp_path / "data.npy"), str(tmp_path / "model.npy"))
     assert done.returncode == 2 and "NaN or Inf" in done.stderr
-    done = run("register", str(tmp_path / "data.npy"), str(tmp_path / "model.npy"), "--drop-nonfinite", "--json")
+    done = run(
+        "register", str(tmp_path / "data.npy"), str(tmp_path / "model.npy"), "--drop-nonfinite", "--json"
+    )
     assert done.returncode == 0 and json.loads(done.stdout)["scale"] == pytest.approx(2.5, rel=1e-3)
 
 

@@ -10,7 +10,14 @@ import time
 
 import numpy as np
 import pytest
-from node_support import TRUTH, cloud_message, ros_environment, scene_messages, transform_similarity, wait_until
+from node_support import (
+    TRUTH,
+    cloud_message,
+    ros_environment,
+    scene_messages,
+    transform_similarity,
+    wait_until,
+)
 
 ros_environment(131)  # before rclpy.init
 
@@ -38,12 +45,20 @@ class Probe:
         self.node = rclpy.create_node("probe", context=context)
         self.model_pub = self.node.create_publisher(PointCloud2, "model", RELIABLE)
         self.data_pub = self.node.create_publisher(PointCloud2, "data", RELIABLE)
-        self.received: dict[str, list] = {name: [] for name in
-                                          ("transform", "scale", "rms", "similarity", "aligned", "diagnostics")}
-        for name, msg_type in (("transform", TransformStamped), ("scale", Float64), ("rms", Float64),
-                               ("similarity", Float64MultiArray), ("aligned", PointCloud2)):
+        self.received: dict[str, list] = {
+            name: [] for name in ("transform", "scale", "rms", "similarity", "aligned", "diagnostics")
+        }
+        for name, msg_type in (
+            ("transform", TransformStamped),
+            ("scale", Float64),
+            ("rms", Float64),
+            ("similarity", Float64MultiArray),
+            ("aligned", PointCloud2),
+        ):
             self.node.create_subscription(msg_type, f"/frisicp/{name}", self.received[name].append, RELIABLE)
-        self.node.create_subscription(DiagnosticArray, "/diagnostics", self.received["diagnostics"].append, 10)
+        self.node.create_subscription(
+            DiagnosticArray, "/diagnostics", self.received["diagnostics"].append, 10
+        )
         self.reset_client = self.node.create_client(Trigger, "/frisicp/reset")
 
     def clear(self) -> None:
@@ -55,8 +70,10 @@ class Probe:
 def ros():
     context = rclpy.Context()
     rclpy.init(context=context)
-    node = RegistrationNode(context=context, parameter_overrides=[
-        Parameter("max_points", value=3000), Parameter("diagnostics_period", value=0.3)])
+    node = RegistrationNode(
+        context=context,
+        parameter_overrides=[Parameter("max_points", value=3000), Parameter("diagnostics_period", value=0.3)],
+    )
     probe = Probe(context)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
@@ -77,7 +94,9 @@ def register_pair(probe: Probe, model, data) -> TransformStamped:
     wanted = (data.header.stamp.sec, data.header.stamp.nanosec)
 
     def answered() -> bool:
-        return any((t.header.stamp.sec, t.header.stamp.nanosec) == wanted for t in probe.received["transform"])
+        return any(
+            (t.header.stamp.sec, t.header.stamp.nanosec) == wanted for t in probe.received["transform"]
+        )
 
     def publish() -> None:
         probe.model_pub.publish(model)
@@ -85,7 +104,9 @@ def register_pair(probe: Probe, model, data) -> TransformStamped:
         probe.data_pub.publish(data)
 
     assert wait_until(answered, TIMEOUT, action=publish, every=1.0), "no transform for the data stamp"
-    return next(t for t in probe.received["transform"] if (t.header.stamp.sec, t.header.stamp.nanosec) == wanted)
+    return next(
+        t for t in probe.received["transform"] if (t.header.stamp.sec, t.header.stamp.nanosec) == wanted
+    )
 
 
 def test_registers_pair_and_publishes_every_output(ros):
@@ -94,8 +115,9 @@ def test_registers_pair_and_publishes_every_output(ros):
     model, data = scene_messages()
     transform = register_pair(probe, model, data)
     assert (transform.header.frame_id, transform.child_frame_id) == ("map", "velodyne")
-    assert wait_until(lambda: probe.received["scale"] and probe.received["similarity"]
-                      and probe.received["rms"], 5.0)
+    assert wait_until(
+        lambda: probe.received["scale"] and probe.received["similarity"] and probe.received["rms"], 5.0
+    )
     scale = probe.received["scale"][-1].data
     estimate = transform_similarity(transform, scale)
     assert scale == pytest.approx(TRUTH.scale, rel=1e-3)
@@ -137,7 +159,13 @@ def test_diagnostics_report_rates_latency_and_result(ros):
     values = ok_report()
     assert float(values["last rms"]) < 0.01 and values["last converged"] == "True"
     assert int(values["registered pairs"]) >= 1 and float(values["latency p50 (ms)"]) > 0
-    for key in ("model rate (Hz)", "data rate (Hz)", "dropped pairs", "rejected data clouds", "last iterations"):
+    for key in (
+        "model rate (Hz)",
+        "data rate (Hz)",
+        "dropped pairs",
+        "rejected data clouds",
+        "last iterations",
+    ):
         assert key in values
 
 
@@ -192,14 +220,20 @@ def test_bad_inputs_are_skipped_counted_and_the_node_keeps_registering(ros):
         probe.data_pub.publish(bad)
         time.sleep(0.3)  # one at a time: the newest-wins slot would otherwise drop some
     rejected = node._status._rejected
-    assert wait_until(lambda: (rejected["data"] - rejected_before["data"]
-                               + rejected["pair"] - rejected_before["pair"]) == len(bad_clouds), 10.0), rejected
+    assert wait_until(
+        lambda: (
+            (rejected["data"] - rejected_before["data"] + rejected["pair"] - rejected_before["pair"])
+            == len(bad_clouds)
+        ),
+        10.0,
+    ), rejected
     # a bad model, then frames changing mid-stream in synchronized mode
     probe.model_pub.publish(bad_clouds["all_nan"])
     probe.data_pub.publish(data)
     assert wait_until(lambda: rejected["model"] > rejected_before["model"], 10.0)
-    assert node.set_parameters([Parameter("pairing", value="synchronized"),
-                                Parameter("sync_tolerance", value=0.1)])[0].successful
+    assert node.set_parameters(
+        [Parameter("pairing", value="synchronized"), Parameter("sync_tolerance", value=0.1)]
+    )[0].successful
     good_model, good_data = scene_messages(stamp_ns=1_700_000_006_000_000_000)
     register_pair(probe, good_model, good_data)
     moved_model, moved_data = scene_messages(stamp_ns=1_700_000_007_000_000_000)
@@ -221,9 +255,17 @@ def _field(name: str, offset: int, datatype: int = 7):
 
 
 def _replace(msg: PointCloud2, **changes) -> PointCloud2:
-    copy = PointCloud2(header=msg.header, height=msg.height, width=msg.width, fields=list(msg.fields),
-                       is_bigendian=msg.is_bigendian, point_step=msg.point_step, row_step=msg.row_step,
-                       data=msg.data, is_dense=msg.is_dense)
+    copy = PointCloud2(
+        header=msg.header,
+        height=msg.height,
+        width=msg.width,
+        fields=list(msg.fields),
+        is_bigendian=msg.is_bigendian,
+        point_step=msg.point_step,
+        row_step=msg.row_step,
+        data=msg.data,
+        is_dense=msg.is_dense,
+    )
     for key, value in changes.items():
         setattr(copy, key, value)
     return copy

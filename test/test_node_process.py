@@ -30,15 +30,28 @@ from std_msgs.msg import Float64  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 REGISTER_NODE = Path(sys.executable).parent / "register_node"
-LATCHED = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+LATCHED = QoSProfile(
+    depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+)
 TIMEOUT = 30.0
 
 
 @pytest.fixture
 def node_process():
-    command = [str(REGISTER_NODE), "--ros-args", "--params-file", str(ROOT / "config" / "frisicp.yaml"),
-               "-p", "model_qos:=transient_local", "-p", "max_points:=3000",
-               "-r", "model:=/test/map", "-r", "data:=/test/scan"]
+    command = [
+        str(REGISTER_NODE),
+        "--ros-args",
+        "--params-file",
+        str(ROOT / "config" / "frisicp.yaml"),
+        "-p",
+        "model_qos:=transient_local",
+        "-p",
+        "max_points:=3000",
+        "-r",
+        "model:=/test/map",
+        "-r",
+        "data:=/test/scan",
+    ]
     process = subprocess.Popen(command, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     yield process
     if process.poll() is None:
@@ -73,7 +86,8 @@ def test_console_script_registers_validates_parameters_and_exits_cleanly_on_sigi
     model_pub.publish(model)  # once: the node's transient-local subscription gets it when it appears
 
     assert wait_until(lambda: bool(transforms), TIMEOUT, action=lambda: data_pub.publish(data), every=0.5), (
-        "no transform from the node process: " + _stderr_if_dead(node_process))
+        "no transform from the node process: " + _stderr_if_dead(node_process)
+    )
     transform = transforms[0]
     assert (transform.header.frame_id, transform.child_frame_id) == ("map", "velodyne")
     assert transform.header.stamp == data.header.stamp  # the data's stamp, not now()
@@ -86,8 +100,12 @@ def test_console_script_registers_validates_parameters_and_exits_cleanly_on_sigi
     # `ros2 param set /frisicp overlap 0.0` goes through this service
     client = probe.create_client(SetParameters, "/frisicp/set_parameters")
     assert client.wait_for_service(timeout_sec=TIMEOUT)
-    request = SetParameters.Request(parameters=[
-        Parameter("overlap", value=0.0).to_parameter_msg(), Parameter("levels", value=2).to_parameter_msg()])
+    request = SetParameters.Request(
+        parameters=[
+            Parameter("overlap", value=0.0).to_parameter_msg(),
+            Parameter("levels", value=2).to_parameter_msg(),
+        ]
+    )
     future = client.call_async(request)
     assert wait_until(future.done, TIMEOUT)
     overlap_result, levels_result = future.result().results
@@ -107,8 +125,13 @@ def test_console_script_registers_validates_parameters_and_exits_cleanly_on_sigi
 def test_invalid_parameter_file_value_fails_with_a_message(tmp_path):
     bad = tmp_path / "bad.yaml"
     bad.write_text("/**:\n  ros__parameters:\n    overlap: 0.0\n")
-    run = subprocess.run([str(REGISTER_NODE), "--ros-args", "--params-file", str(bad)], env=ENV,
-                         capture_output=True, text=True, timeout=30)
+    run = subprocess.run(
+        [str(REGISTER_NODE), "--ros-args", "--params-file", str(bad)],
+        env=ENV,
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
     assert run.returncode == 2
     assert "invalid parameters" in run.stderr and "overlap" in run.stderr and "Traceback" not in run.stderr
 

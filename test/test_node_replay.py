@@ -89,8 +89,20 @@ def probe(monkeypatch):
 
 
 def start_node(bag: Path, *parameters: str) -> subprocess.Popen:
-    command = [str(REGISTER_NODE), "--ros-args", "-r", f"model:={MODEL_TOPIC}", "-r", f"data:={DATA_TOPIC}",
-               "-p", f"bag:={bag}", "-p", "warm_start:=false", "-p", "bag_wait_for_subscribers:=1"]
+    command = [
+        str(REGISTER_NODE),
+        "--ros-args",
+        "-r",
+        f"model:={MODEL_TOPIC}",
+        "-r",
+        f"data:={DATA_TOPIC}",
+        "-p",
+        f"bag:={bag}",
+        "-p",
+        "warm_start:=false",
+        "-p",
+        "bag_wait_for_subscribers:=1",
+    ]
     for parameter in parameters:
         command += ["-p", parameter]
     return subprocess.Popen(command, env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -108,7 +120,9 @@ def finish(process: subprocess.Popen) -> tuple[int, str]:
 
 def assert_transforms_match(transforms, scales, scenario) -> None:
     data = scenario.data_records()
-    assert [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in transforms] == [d.header_ns for d in data]
+    assert [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in transforms] == [
+        d.header_ns for d in data
+    ]
     for msg, scale, record in zip(transforms, scales, data):
         assert (msg.header.frame_id, msg.child_frame_id) == (MODEL_FRAME, DATA_FRAME)
         q, t = msg.transform.rotation, msg.transform.translation
@@ -125,7 +139,8 @@ def test_replay_as_fast_as_possible_publishes_every_pair_then_exits(bag, scenari
     assert code == 0, err
     assert "bag replay done: 4 pairs" in err
     assert wait_until(lambda: len(probe.transforms) == 4 and len(probe.scales) == 4, 5.0), (
-        f"{len(probe.transforms)} transforms, {len(probe.scales)} scales; node log: {err}")
+        f"{len(probe.transforms)} transforms, {len(probe.scales)} scales; node log: {err}"
+    )
     assert_transforms_match(probe.transforms, probe.scales, scenario)
 
 
@@ -151,6 +166,10 @@ def test_replay_of_an_unusable_bag_fails_at_start_up_with_the_reason(tmp_path, b
     assert code == 2 and "missing.mcap: no such file or directory" in err and "Traceback" not in err
     wrong_topic = subprocess.Popen(
         [str(REGISTER_NODE), "--ros-args", "-r", "model:=/nothing", "-p", f"bag:={bag}"],
-        env=ENV, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        env=ENV,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
     code, err = finish(wrong_topic)
     assert code == 2 and "/nothing is not in the bag" in err and MODEL_TOPIC in err and "Traceback" not in err

@@ -28,11 +28,14 @@ def cloud(points, frame: str, stamp_ns: int, types=None, **extra):
 def scene(n: int = 3000, stamp_ns: int = 5_000_000_123, types=None):
     """(model msg, data msg) with model = TRUTH(data) exactly."""
     data = bumpy_surface(n, seed=3)
-    return (cloud(TRUTH.apply(data), "map", stamp_ns - 10**8, types),
-            cloud(data, "lidar", stamp_ns, types, intensity=np.arange(n, dtype=np.float32)))
+    return (
+        cloud(TRUTH.apply(data), "map", stamp_ns - 10**8, types),
+        cloud(data, "lidar", stamp_ns, types, intensity=np.arange(n, dtype=np.float32)),
+    )
 
 
 # --- pairing -------------------------------------------------------------------------------------
+
 
 def test_latest_model_pairs_each_data_with_newest_model():
     pairer: Pairer[str, str] = Pairer("latest_model")
@@ -63,6 +66,7 @@ def test_synchronized_pairs_by_stamp_within_tolerance_in_either_arrival_order():
 
 # --- pipeline ------------------------------------------------------------------------------------
 
+
 def test_pipeline_recovers_the_similarity_and_reports_timings():
     model_msg, data_msg = scene()
     pipeline = RegistrationPipeline(PipelineSettings(max_points=2000))
@@ -85,7 +89,8 @@ def test_pipeline_2d_mode_registers_planar_scans():
     truth = Similarity(0.6, axis_rotation(2, 40.0), np.array([1.0, 2.0]))
     zeros = np.zeros((800, 1))
     outcome = RegistrationPipeline(PipelineSettings(dims=2)).process(
-        cloud(np.hstack([truth.apply(data), zeros]), "map", 10), cloud(np.hstack([data, zeros]), "scan", 10))
+        cloud(np.hstack([truth.apply(data), zeros]), "map", 10), cloud(np.hstack([data, zeros]), "scan", 10)
+    )
     assert outcome.ok, outcome.rejection
     assert outcome.result.similarity.scale == pytest.approx(0.6, rel=1e-3)
 
@@ -118,6 +123,7 @@ def test_settings_validate_through_the_core():
 
 # --- outputs -------------------------------------------------------------------------------------
 
+
 @pytest.mark.parametrize("flavour", [rclpy_message_types, rosbags_message_types])
 def test_outputs_carry_data_stamp_frames_and_the_similarity(flavour):
     types = flavour()
@@ -130,19 +136,31 @@ def test_outputs_carry_data_stamp_frames_and_the_similarity(flavour):
     q = transform.transform.rotation
     sim = outcome.result.similarity
     rebuilt = Similarity.from_quaternion(
-        messages["scale"].data, [q.x, q.y, q.z, q.w],
-        [transform.transform.translation.x, transform.transform.translation.y,
-         transform.transform.translation.z])
+        messages["scale"].data,
+        [q.x, q.y, q.z, q.w],
+        [
+            transform.transform.translation.x,
+            transform.transform.translation.y,
+            transform.transform.translation.z,
+        ],
+    )
     np.testing.assert_allclose(rebuilt.matrix(), sim.matrix(), atol=1e-9)
     matrix = messages["similarity"]
     assert [(d.label, d.size, d.stride) for d in matrix.layout.dim] == [("rows", 4, 16), ("cols", 4, 4)]
     np.testing.assert_allclose(np.asarray(matrix.data).reshape(4, 4), sim.matrix())
     assert messages["rms"].data == pytest.approx(outcome.result.rms)
     aligned = messages["aligned"]
-    assert aligned.header.frame_id == "map" and [f.name for f in aligned.fields] == ["x", "y", "z", "intensity"]
+    assert aligned.header.frame_id == "map" and [f.name for f in aligned.fields] == [
+        "x",
+        "y",
+        "z",
+        "intensity",
+    ]
     np.testing.assert_allclose(
-        np.frombuffer(aligned.data, np.float32).reshape(-1, 4)[:, :3], TRUTH.apply(bumpy_surface(1500, seed=3)),
-        atol=1e-3)
+        np.frombuffer(aligned.data, np.float32).reshape(-1, 4)[:, :3],
+        TRUTH.apply(bumpy_surface(1500, seed=3)),
+        atol=1e-3,
+    )
 
 
 def test_rosbags_outputs_serialize_with_the_jazzy_typestore():
@@ -169,7 +187,9 @@ def test_2d_outputs_are_a_rotation_about_z_and_a_3x3_matrix():
     truth = Similarity(2.0, axis_rotation(2, 30.0), np.array([1.0, -1.0]))
     zeros = np.zeros((600, 1))
     outcome = RegistrationPipeline(PipelineSettings(dims=2)).process(
-        cloud(np.hstack([truth.apply(data), zeros]), "map", 10), cloud(np.hstack([data, zeros + 5.0]), "scan", 20))
+        cloud(np.hstack([truth.apply(data), zeros]), "map", 10),
+        cloud(np.hstack([data, zeros + 5.0]), "scan", 20),
+    )
     messages = build_outputs(outcome, types, tuple(OUTPUT_TOPICS))
     q = messages["transform"].transform.rotation
     assert (q.x, q.y) == (0.0, 0.0) and np.degrees(2 * np.arctan2(q.z, q.w)) == pytest.approx(30.0, abs=0.05)

@@ -51,8 +51,12 @@ def test_every_datatype_and_byte_order_round_trips(types, datatype, big_endian):
         points = np.abs(points)
     if DATATYPES[datatype].itemsize == 1:
         points = np.clip(points, -100, 100)
-    parts = points_to_parts(points, {"intensity": np.arange(len(points), dtype=np.float32)},
-                            datatype=datatype, big_endian=big_endian)
+    parts = points_to_parts(
+        points,
+        {"intensity": np.arange(len(points), dtype=np.float32)},
+        datatype=datatype,
+        big_endian=big_endian,
+    )
     msg = make(types, parts)
     np.testing.assert_array_equal(cloud_to_points(msg), points)
     np.testing.assert_array_equal(cloud_to_points(msg, dims=2), points[:, :2])
@@ -64,15 +68,19 @@ def test_padding_offsets_and_organized_rows_with_row_padding(types):
     row_step = width * point_step + row_pad
     points = grid_points(height * width)
     data = np.zeros(height * row_step, dtype=np.uint8)
-    fields = (FieldSpec("intensity", 0, UINT8), FieldSpec("z", 4, FLOAT64), FieldSpec("x", 16, FLOAT32),
-              FieldSpec("y", 24, INT16))
+    fields = (
+        FieldSpec("intensity", 0, UINT8),
+        FieldSpec("z", 4, FLOAT64),
+        FieldSpec("x", 16, FLOAT32),
+        FieldSpec("y", 24, INT16),
+    )
     for index, (x, y, z) in enumerate(points):
         row, col = divmod(index, width)
         base = row * row_step + col * point_step
         data[base] = index
-        data[base + 4: base + 12] = np.frombuffer(np.float64(z).tobytes(), np.uint8)
-        data[base + 16: base + 20] = np.frombuffer(np.float32(x).tobytes(), np.uint8)
-        data[base + 24: base + 26] = np.frombuffer(np.int16(y).tobytes(), np.uint8)
+        data[base + 4 : base + 12] = np.frombuffer(np.float64(z).tobytes(), np.uint8)
+        data[base + 16 : base + 20] = np.frombuffer(np.float32(x).tobytes(), np.uint8)
+        data[base + 24 : base + 26] = np.frombuffer(np.int16(y).tobytes(), np.uint8)
     parts = CloudParts(height, width, fields, False, point_step, row_step, data, True)
     msg = make(types, parts)
     np.testing.assert_array_equal(cloud_to_points(msg), points)
@@ -97,22 +105,45 @@ def test_nan_and_inf_points_are_dropped_and_cap_downsamples(types):
     assert {tuple(p) for p in capped} <= {tuple(p) for p in converted}
 
 
-@pytest.mark.parametrize("break_it, message", [
-    (lambda parts: {"data": parts.data[:-1]}, r"len\(data\)"),
-    (lambda parts: {"fields": parts.fields[1:]}, "no 'x' field"),
-    (lambda parts: {"fields": (FieldSpec("x", 0, FLOAT32), FieldSpec("y", 2, FLOAT32),
-                               FieldSpec("z", 8, FLOAT32))}, "overlap"),
-    (lambda parts: {"point_step": 8, "row_step": 8 * parts.width,
-                    "data": parts.data[: 8 * parts.width]}, "point_step too small"),
-    (lambda parts: {"fields": (FieldSpec("x", 0, 9),) + parts.fields[1:]}, "unknown datatype"),
-    (lambda parts: {"fields": parts.fields + (FieldSpec("x", 12, FLOAT32),), "point_step": 16,
-                    "row_step": 16 * parts.width, "data": np.zeros(16 * parts.width, np.uint8)},
-     "appears twice"),
-    (lambda parts: {"row_step": 4, "data": parts.data[: 4 * parts.height]}, "row_step"),
-    (lambda parts: {"width": 0, "row_step": 0, "data": parts.data[:0]}, "empty cloud"),
-    (lambda parts: {"data": np.frombuffer(np.full(3 * parts.width, np.nan, np.float32).tobytes(),
-                                          np.uint8)}, "no finite points"),
-])
+@pytest.mark.parametrize(
+    "break_it, message",
+    [
+        (lambda parts: {"data": parts.data[:-1]}, r"len\(data\)"),
+        (lambda parts: {"fields": parts.fields[1:]}, "no 'x' field"),
+        (
+            lambda parts: {
+                "fields": (FieldSpec("x", 0, FLOAT32), FieldSpec("y", 2, FLOAT32), FieldSpec("z", 8, FLOAT32))
+            },
+            "overlap",
+        ),
+        (
+            lambda parts: {
+                "point_step": 8,
+                "row_step": 8 * parts.width,
+                "data": parts.data[: 8 * parts.width],
+            },
+            "point_step too small",
+        ),
+        (lambda parts: {"fields": (FieldSpec("x", 0, 9),) + parts.fields[1:]}, "unknown datatype"),
+        (
+            lambda parts: {
+                "fields": parts.fields + (FieldSpec("x", 12, FLOAT32),),
+                "point_step": 16,
+                "row_step": 16 * parts.width,
+                "data": np.zeros(16 * parts.width, np.uint8),
+            },
+            "appears twice",
+        ),
+        (lambda parts: {"row_step": 4, "data": parts.data[: 4 * parts.height]}, "row_step"),
+        (lambda parts: {"width": 0, "row_step": 0, "data": parts.data[:0]}, "empty cloud"),
+        (
+            lambda parts: {
+                "data": np.frombuffer(np.full(3 * parts.width, np.nan, np.float32).tobytes(), np.uint8)
+            },
+            "no finite points",
+        ),
+    ],
+)
 def test_bad_clouds_raise_cloud_error(types, break_it, message):
     parts = points_to_parts(grid_points(10))
     msg = make(types, parts, **break_it(parts))
@@ -133,9 +164,15 @@ def test_aligned_cloud_maps_coordinates_and_keeps_other_fields(types, dims):
     out = aligned_cloud(msg, similarity, dims, lambda parts: types.point_cloud(parts, msg.header))
     assert isinstance(out, type(msg))
     table = np.frombuffer(out.data, np.uint8).view(
-        np.dtype({"names": ["x", "y", "z", "intensity", "rgb"],
-                  "formats": ["<f8", "<f8", "<f8", "<f4", "<u4"],
-                  "offsets": [f.offset for f in out.fields], "itemsize": out.point_step}))
+        np.dtype(
+            {
+                "names": ["x", "y", "z", "intensity", "rgb"],
+                "formats": ["<f8", "<f8", "<f8", "<f4", "<u4"],
+                "offsets": [f.offset for f in out.fields],
+                "itemsize": out.point_step,
+            }
+        )
+    )
     expected = points.copy()
     expected[:, :dims] = similarity.apply(points[:, :dims])
     mapped = np.column_stack([table["x"], table["y"], table["z"]])

@@ -86,8 +86,9 @@ def test_works_in_any_dimension(dim):
     model = rng.normal(size=(600, dim)) * np.linspace(1.0, 2.0, dim)
     model[:, 0] += 0.3 * model[:, 1] ** 2  # break the symmetry of the Gaussian blob
     truth = Similarity(0.6, np.eye(dim), np.full(dim, 0.1))
-    result = register(truth.inverse().apply(model), model,
-                      RegistrationConfig(initialization=Initialization.MOMENTS))
+    result = register(
+        truth.inverse().apply(model), model, RegistrationConfig(initialization=Initialization.MOMENTS)
+    )
     assert errors(result.similarity, truth)[1] < 1e-6
 
 
@@ -138,7 +139,11 @@ def test_real_partial_overlap_scan_pair(scale):
     model = bunny("bun000.ply")
     scan = bunny("bun045.ply")
     data = scale * scan
-    truth = scan_pose("bun000.ply").inverse() @ scan_pose("bun045.ply") @ Similarity(1 / scale, np.eye(3), np.zeros(3))
+    truth = (
+        scan_pose("bun000.ply").inverse()
+        @ scan_pose("bun045.ply")
+        @ Similarity(1 / scale, np.eye(3), np.zeros(3))
+    )
     result = register(data, model, RegistrationConfig.robust())
     rotation_error, scale_error = errors(result.similarity, truth)
     diagonal = np.linalg.norm(model.max(axis=0) - model.min(axis=0))
@@ -181,7 +186,9 @@ def test_iteration_cap_is_honoured_and_reported_as_not_converged():
 
     model = SHAPES["2-D contour"]
     data, _ = scaled_copy(model, 0.3, degrees=30.0)
-    result = register(data, model, RegistrationConfig.paper(levels=1, criteria=ConvergenceCriteria(max_iterations=2)))
+    result = register(
+        data, model, RegistrationConfig.paper(levels=1, criteria=ConvergenceCriteria(max_iterations=2))
+    )
     assert result.iterations == (2,) and not result.converged
 
 

@@ -23,7 +23,9 @@ def test_compose_inverse_and_matrix_agree(dim):
 
 
 def test_quaternion_round_trip_uses_ros_order_xyzw():
-    quarter_turn_about_z = Similarity.from_quaternion(1.0, [0, 0, np.sin(np.pi / 4), np.cos(np.pi / 4)], [0, 0, 0])
+    quarter_turn_about_z = Similarity.from_quaternion(
+        1.0, [0, 0, np.sin(np.pi / 4), np.cos(np.pi / 4)], [0, 0, 0]
+    )
     np.testing.assert_allclose(quarter_turn_about_z.apply([1.0, 0, 0]), [0, 1, 0], atol=1e-12)
     rng = np.random.default_rng(0)
     for _ in range(50):
@@ -33,11 +35,17 @@ def test_quaternion_round_trip_uses_ros_order_xyzw():
         np.testing.assert_allclose(Similarity.from_quaternion(1.0, q, np.zeros(3)).rotation, rot, atol=1e-9)
 
 
-@pytest.mark.parametrize("bad", [
-    dict(scale=0.0), dict(scale=-1.0), dict(scale=np.nan),
-    dict(rotation=np.diag([1.0, 1.0, -1.0])), dict(rotation=2 * np.eye(3)),
-    dict(translation=[0.0, 0.0]),
-])
+@pytest.mark.parametrize(
+    "bad",
+    [
+        dict(scale=0.0),
+        dict(scale=-1.0),
+        dict(scale=np.nan),
+        dict(rotation=np.diag([1.0, 1.0, -1.0])),
+        dict(rotation=2 * np.eye(3)),
+        dict(translation=[0.0, 0.0]),
+    ],
+)
 def test_invalid_similarities_are_refused(bad):
     args = dict(scale=1.0, rotation=np.eye(3), translation=np.zeros(3)) | bad
     with pytest.raises(ValueError):

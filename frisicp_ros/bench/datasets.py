@@ -32,7 +32,8 @@ def require(path: Path) -> Path:
     if not path.exists():
         raise DataMissingError(
             f"{path} is missing: the benchmark reads the real data from ../shared/data beside the "
-            "repository (or --data DIR); it is not shipped with the package")
+            "repository (or --data DIR); it is not shipped with the package"
+        )
     return path
 
 

@@ -23,8 +23,9 @@ def paired_contour_family(data_dir: Path, shape_class: str, angles: int = START_
     model = silhouette_contour(data_dir, shape_class, 1)
     data = silhouette_contour(data_dir, shape_class, 2)
     placement, rms = reference_placement(data, model, angles)
-    return Family(f"{shape_class} 2→1", "2-D", "px", placement.apply(data), model,
-                  true_pose=False, reference_rms=rms)
+    return Family(
+        f"{shape_class} 2→1", "2-D", "px", placement.apply(data), model, true_pose=False, reference_rms=rms
+    )
 
 
 def bunny_self_family(data_dir: Path, file_name: str = "bun_zipper.ply") -> Family:

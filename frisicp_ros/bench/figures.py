@@ -12,19 +12,25 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")  # files only; no display on CI or servers
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from frisicp_core import Similarity  # noqa: E402
-from frisicp_core.similarity import FloatArray  # noqa: E402
+from frisicp_core import Similarity
+from frisicp_core.similarity import FloatArray
 
-from .cases import Case, Family  # noqa: E402
-from .runner import BenchmarkRun, CaseRecord  # noqa: E402
-from .summary import select  # noqa: E402
-from .tables import ordered_methods  # noqa: E402
+from .cases import Case, Family
+from .runner import BenchmarkRun, CaseRecord
+from .summary import select
+from .tables import ordered_methods
 
-COLOURS = {"frisicp": "tab:red", "frisicp-robust": "tab:orange", "icp": "tab:blue",
-           "scale-icp": "tab:green", "bounded-icp": "tab:purple", "open3d": "tab:gray"}
+COLOURS = {
+    "frisicp": "tab:red",
+    "frisicp-robust": "tab:orange",
+    "icp": "tab:blue",
+    "scale-icp": "tab:green",
+    "bounded-icp": "tab:purple",
+    "open3d": "tab:gray",
+}
 MODEL_COLOUR, DATA_COLOUR = "tab:red", "tab:blue"  # the paper's colours: model red, data blue
 # Points drawn per set in 3-D pictures: enough to show the shape, few enough for small files.
 MAX_DRAWN_POINTS = 1800
@@ -85,8 +91,11 @@ def convergence_figure(run: BenchmarkRun, case: Case) -> plt.Figure:
         axes.set_ylabel(f"forward RMS ({family.units})")
         axes.grid(True, which="both", alpha=0.3)
     by_iteration.legend(loc="best", fontsize=9)
-    figure.suptitle(f"Convergence on {family.name}, s = {case.scale:g} ({family.data.shape[0]} data points). "
-                    "FRISICP's coarse levels use fewer points, hence the jumps.", fontsize=10)
+    figure.suptitle(
+        f"Convergence on {family.name}, s = {case.scale:g} ({family.data.shape[0]} data points). "
+        "FRISICP's coarse levels use fewer points, hence the jumps.",
+        fontsize=10,
+    )
     return figure
 
 
@@ -113,7 +122,7 @@ def registration_figure(run: BenchmarkRun, case: Case) -> plt.Figure:
         axes.set_aspect("equal", adjustable="datalim")
         axes.set_xticks([])
         axes.set_yticks([])
-    for axes in axes_grid.ravel()[len(panels):]:
+    for axes in axes_grid.ravel()[len(panels) :]:
         axes.axis("off")
     family = case.family
     view = "front view (x, y)" if family.dim == 3 else "plane"
@@ -126,8 +135,10 @@ def _verdict(record: CaseRecord | None) -> str:
         return ""
     if record.estimate is None:
         return f"\nfailed: {record.failure}"
-    return (f"\n{'success' if record.success else 'FAIL'}: rot {record.rotation_deg:.2g}°, "
-            f"scale {record.scale_error:.1%}")
+    return (
+        f"\n{'success' if record.success else 'FAIL'}: rot {record.rotation_deg:.2g}°, "
+        f"scale {record.scale_error:.1%}"
+    )
 
 
 def _thinned(points: FloatArray) -> FloatArray:
@@ -159,7 +170,10 @@ def success_figure(run: BenchmarkRun) -> plt.Figure:
         axes.set_yticks(range(len(keys)), [run.method_label(k) for k in keys])
         axes.set_xlabel("scale factor s")
         families = sorted({r.family for r in select(run, true_pose=true_pose)})
-        axes.set_title(("true pose: " if true_pose else "against the reference: ") + ", ".join(families),
-                       fontsize=8, wrap=True)
+        axes.set_title(
+            ("true pose: " if true_pose else "against the reference: ") + ", ".join(families),
+            fontsize=8,
+            wrap=True,
+        )
     figure.colorbar(image, ax=panels, label="share of families with success")
     return figure

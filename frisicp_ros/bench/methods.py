@@ -51,9 +51,12 @@ class MethodSpec:
 def core_method(config: RegistrationConfig) -> Callable[[FloatArray, FloatArray], Outcome]:
     def run(data: FloatArray, model: FloatArray) -> Outcome:
         result = register(data, model, config)
-        history = tuple(ConvergencePoint(k, r.level, r.seconds, r.forward_rms)
-                        for k, r in enumerate(result.history, start=1))
+        history = tuple(
+            ConvergencePoint(k, r.level, r.seconds, r.forward_rms)
+            for k, r in enumerate(result.history, start=1)
+        )
         return Outcome(result.similarity, sum(result.iterations), result.seconds, result.converged, history)
+
     return run
 
 
@@ -71,9 +74,13 @@ def open3d_scaled_icp(data: FloatArray, model: FloatArray) -> Outcome:
     target = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(model))
     reach = float(np.linalg.norm(model.max(axis=0) - model.min(axis=0)))
     result = reg.registration_icp(
-        source, target, reach, np.eye(4),
+        source,
+        target,
+        reach,
+        np.eye(4),
         reg.TransformationEstimationPointToPoint(with_scaling=True),
-        reg.ICPConvergenceCriteria(max_iteration=MAX_ITERATIONS))
+        reg.ICPConvergenceCriteria(max_iteration=MAX_ITERATIONS),
+    )
     seconds = time.perf_counter() - start
     try:
         similarity = Similarity.from_matrix(np.asarray(result.transformation))

@@ -28,8 +28,11 @@ class PoseErrors:
 
     @property
     def success(self) -> bool:
-        return (self.rotation_deg < MAX_ROTATION_DEG and self.scale < MAX_SCALE_ERROR
-                and self.translation < MAX_TRANSLATION_ERROR)
+        return (
+            self.rotation_deg < MAX_ROTATION_DEG
+            and self.scale < MAX_SCALE_ERROR
+            and self.translation < MAX_TRANSLATION_ERROR
+        )
 
 
 def model_size(model: FloatArray) -> float:

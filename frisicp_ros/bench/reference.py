@@ -26,14 +26,22 @@ SCREENING_ITERATIONS = 15
 REFINED_STARTS = 4
 
 
-def start_placements(data: FloatArray, model: FloatArray, angles: int = START_ANGLES,
-                     scale_factors: tuple[float, ...] = START_SCALE_FACTORS) -> list[Similarity]:
+def start_placements(
+    data: FloatArray,
+    model: FloatArray,
+    angles: int = START_ANGLES,
+    scale_factors: tuple[float, ...] = START_SCALE_FACTORS,
+) -> list[Similarity]:
     """2-D similarities putting the data's centroid on the model's, at each angle and scale."""
     if data.shape[1] != 2:
         raise ValueError("the reference search turns shapes in the plane: 2-D only")
     data_centroid, model_centroid = data.mean(axis=0), model.mean(axis=0)
-    radius_ratio = float(np.sqrt(((model - model_centroid) ** 2).sum(axis=1).mean()
-                                 / ((data - data_centroid) ** 2).sum(axis=1).mean()))
+    radius_ratio = float(
+        np.sqrt(
+            ((model - model_centroid) ** 2).sum(axis=1).mean()
+            / ((data - data_centroid) ** 2).sum(axis=1).mean()
+        )
+    )
     starts = []
     for angle in np.linspace(0.0, 2.0 * np.pi, angles, endpoint=False):
         c, s = np.cos(angle), np.sin(angle)
@@ -44,7 +52,9 @@ def start_placements(data: FloatArray, model: FloatArray, angles: int = START_AN
     return starts
 
 
-def reference_placement(data: FloatArray, model: FloatArray, angles: int = START_ANGLES) -> tuple[Similarity, float]:
+def reference_placement(
+    data: FloatArray, model: FloatArray, angles: int = START_ANGLES
+) -> tuple[Similarity, float]:
     """The lowest-symmetric-RMS similarity over all starts, and that RMS.
 
     Every start is screened by a short single-level FRISICP run; the ``REFINED_STARTS`` best are

@@ -65,21 +65,51 @@ def score(case: Case, method: MethodSpec) -> CaseRecord:
     errors = pose_errors(outcome.similarity, case.truth, data, family.size)
     rms = symmetric_rms(outcome.similarity.apply(data), family.model)
     return CaseRecord(
-        family=family.name, scale=case.scale, method=method.key,
-        rotation_deg=errors.rotation_deg, scale_error=errors.scale, translation_error=errors.translation,
-        rms=rms, rms_ratio=rms / family.reference_rms if family.reference_rms else None,
-        iterations=outcome.iterations, seconds=outcome.seconds, converged=outcome.converged,
-        success=errors.success, estimate=outcome.similarity, history=outcome.history)
+        family=family.name,
+        scale=case.scale,
+        method=method.key,
+        rotation_deg=errors.rotation_deg,
+        scale_error=errors.scale,
+        translation_error=errors.translation,
+        rms=rms,
+        rms_ratio=rms / family.reference_rms if family.reference_rms else None,
+        iterations=outcome.iterations,
+        seconds=outcome.seconds,
+        converged=outcome.converged,
+        success=errors.success,
+        estimate=outcome.similarity,
+        history=outcome.history,
+    )
 
 
 def _failed(case: Case, method: MethodSpec, reason: str, seconds: float = math.nan) -> CaseRecord:
     nan = math.nan
-    return CaseRecord(case.family.name, case.scale, method.key, nan, nan, nan, nan, None, 0, seconds,
-                      False, False, None, (), reason)
+    return CaseRecord(
+        case.family.name,
+        case.scale,
+        method.key,
+        nan,
+        nan,
+        nan,
+        nan,
+        None,
+        0,
+        seconds,
+        False,
+        False,
+        None,
+        (),
+        reason,
+    )
 
 
-def run_benchmark(families: Sequence[Family], methods: Sequence[MethodSpec], scales: Sequence[float],
-                  seed: int, progress: Callable[[str], None] = lambda line: None) -> BenchmarkRun:
+def run_benchmark(
+    families: Sequence[Family],
+    methods: Sequence[MethodSpec],
+    scales: Sequence[float],
+    seed: int,
+    progress: Callable[[str], None] = lambda line: None,
+) -> BenchmarkRun:
     cases: list[Case] = []
     records: list[CaseRecord] = []
     for family in families:
@@ -89,7 +119,9 @@ def run_benchmark(families: Sequence[Family], methods: Sequence[MethodSpec], sca
             for method in applicable:
                 record = score(case, method)
                 records.append(record)
-                progress(f"{family.name:16s} s={case.scale:<4} {method.key:15s} "
-                         f"{'ok  ' if record.success else 'FAIL'} rot {record.rotation_deg:8.3f} deg  "
-                         f"scale {record.scale_error:9.2e}  rms {record.rms:9.4g}  {record.seconds:6.2f} s")
+                progress(
+                    f"{family.name:16s} s={case.scale:<4} {method.key:15s} "
+                    f"{'ok  ' if record.success else 'FAIL'} rot {record.rotation_deg:8.3f} deg  "
+                    f"scale {record.scale_error:9.2e}  rms {record.rms:9.4g}  {record.seconds:6.2f} s"
+                )
     return BenchmarkRun(tuple(families), tuple(methods), tuple(cases), tuple(records), seed)

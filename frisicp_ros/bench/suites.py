@@ -7,8 +7,13 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from .cases import PAPER_SCALES, Family
-from .families import (SHAPE_CLASSES, bunny_self_family, paired_contour_family, scan_pair_family,
-                       self_contour_family)
+from .families import (
+    SHAPE_CLASSES,
+    bunny_self_family,
+    paired_contour_family,
+    scan_pair_family,
+    self_contour_family,
+)
 
 
 @dataclass(frozen=True)
@@ -34,5 +39,8 @@ def full_suite() -> Suite:
 
 def quick_suite() -> Suite:
     """For CI (well under 2 minutes): the apple pairs and the 8,171-point bunny at 3 of the 15 scales."""
-    return Suite("quick", (0.1, 0.9, 2.9),
-                 (*_contour_builders("apple"), lambda d: bunny_self_family(d, "bun_zipper_res2.ply")))
+    return Suite(
+        "quick",
+        (0.1, 0.9, 2.9),
+        (*_contour_builders("apple"), lambda d: bunny_self_family(d, "bun_zipper_res2.ply")),
+    )

@@ -11,13 +11,23 @@ import numpy as np
 from .runner import BenchmarkRun, CaseRecord
 
 
-def select(run: BenchmarkRun, *, family: str | None = None, method: str | None = None,
-           kind: str | None = None, true_pose: bool | None = None) -> list[CaseRecord]:
+def select(
+    run: BenchmarkRun,
+    *,
+    family: str | None = None,
+    method: str | None = None,
+    kind: str | None = None,
+    true_pose: bool | None = None,
+) -> list[CaseRecord]:
     families = {f.name: f for f in run.families}
-    return [r for r in run.records
-            if (family is None or r.family == family) and (method is None or r.method == method)
-            and (kind is None or families[r.family].kind == kind)
-            and (true_pose is None or families[r.family].true_pose == true_pose)]
+    return [
+        r
+        for r in run.records
+        if (family is None or r.family == family)
+        and (method is None or r.method == method)
+        and (kind is None or families[r.family].kind == kind)
+        and (true_pose is None or families[r.family].true_pose == true_pose)
+    ]
 
 
 def success_rate(records: Sequence[CaseRecord]) -> float:
@@ -87,9 +97,25 @@ def speed_comparisons(run: BenchmarkRun, family: str, frisicp: str | None = None
         if method.key.startswith("frisicp") or not theirs:
             continue
         by_scale = {r.scale: r for r in theirs}
-        common = [(r, by_scale[r.scale]) for r in ours if r.success and r.scale in by_scale and by_scale[r.scale].success]
-        common_ratio = (sum(b.seconds for _, b in common) / sum(a.seconds for a, _ in common)) if common else math.nan
-        comparisons.append(SpeedComparison(
-            family, frisicp, method.key, mean(r.seconds for r in ours), mean(r.seconds for r in theirs),
-            success_rate(ours), success_rate(theirs), common_ratio, len(common)))
+        common = [
+            (r, by_scale[r.scale])
+            for r in ours
+            if r.success and r.scale in by_scale and by_scale[r.scale].success
+        ]
+        common_ratio = (
+            (sum(b.seconds for _, b in common) / sum(a.seconds for a, _ in common)) if common else math.nan
+        )
+        comparisons.append(
+            SpeedComparison(
+                family,
+                frisicp,
+                method.key,
+                mean(r.seconds for r in ours),
+                mean(r.seconds for r in theirs),
+                success_rate(ours),
+                success_rate(theirs),
+                common_ratio,
+                len(common),
+            )
+        )
     return comparisons

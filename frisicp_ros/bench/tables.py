@@ -52,9 +52,13 @@ def paper_table(run: BenchmarkRun, kind: str, quantity: str) -> list[str]:
                 found = [r for r in select(run, family=family.name, method=key) if r.scale == scale]
                 cells.append(fmt(getattr(found[0], quantity)) if found else "—")
             rows.append(cells)
-        rows.append([family.name, f"mean over {len(scales)}"]
-                    + [fmt(mean(getattr(r, quantity) for r in select(run, family=family.name, method=key)))
-                       for key in keys])
+        rows.append(
+            [family.name, f"mean over {len(scales)}"]
+            + [
+                fmt(mean(getattr(r, quantity) for r in select(run, family=family.name, method=key)))
+                for key in keys
+            ]
+        )
     header = ["shape", "s"] + [run.method_label(k) for k in keys]
     title = "Symmetric RMS" if quantity == "rms" else "Time"
     return [f"**{title} ({unit}), {kind}**", "", *_table(header, rows), ""]
@@ -82,32 +86,72 @@ def medians_table(run: BenchmarkRun) -> list[str]:
                 if not records:
                     continue
                 ratio = median(r.rms_ratio for r in records) if not true_pose else math.nan
-                rows.append([f"{kind} {'true pose' if true_pose else 'vs reference'}", run.method_label(key),
-                             f"{success_rate(records):.0%}", fmt(median(r.rotation_deg for r in records), ".3g"),
-                             fmt(100 * median(r.scale_error for r in records), ".3g"),
-                             fmt(100 * median(r.translation_error for r in records), ".3g"),
-                             fmt(ratio, ".3f"), fmt(median(r.iterations for r in records if r.iterations >= 0), ".0f"),
-                             fmt(median(r.seconds for r in records), ".3f")])
-    return _table(["cases", "method", "success", "rotation (deg)", "scale (%)", "translation (%)",
-                   "RMS / reference", "iterations", "seconds"], rows)
+                rows.append(
+                    [
+                        f"{kind} {'true pose' if true_pose else 'vs reference'}",
+                        run.method_label(key),
+                        f"{success_rate(records):.0%}",
+                        fmt(median(r.rotation_deg for r in records), ".3g"),
+                        fmt(100 * median(r.scale_error for r in records), ".3g"),
+                        fmt(100 * median(r.translation_error for r in records), ".3g"),
+                        fmt(ratio, ".3f"),
+                        fmt(median(r.iterations for r in records if r.iterations >= 0), ".0f"),
+                        fmt(median(r.seconds for r in records), ".3f"),
+                    ]
+                )
+    return _table(
+        [
+            "cases",
+            "method",
+            "success",
+            "rotation (deg)",
+            "scale (%)",
+            "translation (%)",
+            "RMS / reference",
+            "iterations",
+            "seconds",
+        ],
+        rows,
+    )
 
 
 def speed_table(run: BenchmarkRun) -> list[str]:
     rows = []
     for family in (f for f in run.families if f.kind == "3-D"):
         for c in speed_comparisons(run, family.name):
-            rows.append([family.name, run.method_label(c.frisicp), run.method_label(c.baseline), f"{c.ratio:.2f}x",
-                         f"{fmt(c.common_ratio, '.2f')}x ({c.common_cases})",
-                         fmt(c.baseline_seconds, ".3f"), fmt(c.frisicp_seconds, ".3f"),
-                         f"{c.baseline_success:.0%}", f"{c.frisicp_success:.0%}"])
-    return _table(["family", "FRISICP config", "baseline", "baseline time / FRISICP time, all cases",
-                   "same, cases both solve (count)", "baseline mean s", "FRISICP mean s",
-                   "baseline success", "FRISICP success"], rows)
+            rows.append(
+                [
+                    family.name,
+                    run.method_label(c.frisicp),
+                    run.method_label(c.baseline),
+                    f"{c.ratio:.2f}x",
+                    f"{fmt(c.common_ratio, '.2f')}x ({c.common_cases})",
+                    fmt(c.baseline_seconds, ".3f"),
+                    fmt(c.frisicp_seconds, ".3f"),
+                    f"{c.baseline_success:.0%}",
+                    f"{c.frisicp_success:.0%}",
+                ]
+            )
+    return _table(
+        [
+            "family",
+            "FRISICP config",
+            "baseline",
+            "baseline time / FRISICP time, all cases",
+            "same, cases both solve (count)",
+            "baseline mean s",
+            "FRISICP mean s",
+            "baseline success",
+            "FRISICP success",
+        ],
+        rows,
+    )
 
 
 def targets_table(checks: Sequence[TargetCheck]) -> list[str]:
-    return _table(["target", "met", "measured"],
-                  [[c.target, "yes" if c.met else "**no**", c.detail] for c in checks])
+    return _table(
+        ["target", "met", "measured"], [[c.target, "yes" if c.met else "**no**", c.detail] for c in checks]
+    )
 
 
 def protocol_lines(run: BenchmarkRun) -> list[str]:
@@ -125,7 +169,7 @@ def protocol_lines(run: BenchmarkRun) -> list[str]:
         "px or mm), computed by the benchmark for every method alike.",
         "- 2-D families: outer contour (boundary pixels of the largest filled foreground component) of MPEG-7 "
         "`CLASS-1.gif` is the model; `CLASS-2.gif` (k→1 = instance k onto instance 1) or `CLASS-1.gif` itself is the data.",
-        f"- **Different silhouettes (\"2→1\") have no true pose.** Their data is placed by a *reference*, not ground "
+        f'- **Different silhouettes ("2→1") have no true pose.** Their data is placed by a *reference*, not ground '
         f"truth: FRISICP started from {reference.START_ANGLES} angles x {len(reference.START_SCALE_FACTORS)} scales "
         f"around the centroid/RMS-radius alignment, {reference.SCREENING_ITERATIONS} single-level iterations each, "
         f"the {reference.REFINED_STARTS} best refined with the paper settings; the lowest symmetric RMS wins. Errors "
@@ -143,8 +187,13 @@ def protocol_lines(run: BenchmarkRun) -> list[str]:
     ]
 
 
-def markdown_report(run: BenchmarkRun, checks: Sequence[TargetCheck], environment: dict[str, str],
-                    figures: Sequence[str], command: str) -> str:
+def markdown_report(
+    run: BenchmarkRun,
+    checks: Sequence[TargetCheck],
+    environment: dict[str, str],
+    figures: Sequence[str],
+    command: str,
+) -> str:
     lines = [
         "# FRISICP against its baselines: the paper's protocol on real data",
         "",
@@ -205,12 +254,20 @@ def _similarity_json(sim: Similarity | None) -> dict[str, object] | None:
 
 def record_json(record: CaseRecord) -> dict[str, object]:
     return {
-        "family": record.family, "scale": record.scale, "method": record.method,
-        "rotation_deg": _finite(record.rotation_deg), "scale_error": _finite(record.scale_error),
-        "translation_error": _finite(record.translation_error), "rms": _finite(record.rms),
-        "rms_ratio": _finite(record.rms_ratio), "iterations": record.iterations,
-        "seconds": _finite(record.seconds), "converged": record.converged, "success": record.success,
-        "estimate": _similarity_json(record.estimate), "failure": record.failure,
+        "family": record.family,
+        "scale": record.scale,
+        "method": record.method,
+        "rotation_deg": _finite(record.rotation_deg),
+        "scale_error": _finite(record.scale_error),
+        "translation_error": _finite(record.translation_error),
+        "rms": _finite(record.rms),
+        "rms_ratio": _finite(record.rms_ratio),
+        "iterations": record.iterations,
+        "seconds": _finite(record.seconds),
+        "converged": record.converged,
+        "success": record.success,
+        "estimate": _similarity_json(record.estimate),
+        "failure": record.failure,
     }
 
 
@@ -220,18 +277,36 @@ def results_json(run: BenchmarkRun, checks: Sequence[TargetCheck], environment: 
         "seed": run.seed,
         "seconds": _finite(run.seconds),
         "methods": [{"key": m.key, "label": m.label, "dims": list(m.dims)} for m in run.methods],
-        "families": [{"name": f.name, "kind": f.kind, "units": f.units, "true_pose": f.true_pose,
-                      "reference_rms": f.reference_rms, "data_points": int(f.data.shape[0]),
-                      "model_points": int(f.model.shape[0]), "model_size": f.size} for f in run.families],
-        "cases": [{"family": c.family.name, "scale": c.scale, "truth": _similarity_json(c.truth)} for c in run.cases],
+        "families": [
+            {
+                "name": f.name,
+                "kind": f.kind,
+                "units": f.units,
+                "true_pose": f.true_pose,
+                "reference_rms": f.reference_rms,
+                "data_points": int(f.data.shape[0]),
+                "model_points": int(f.model.shape[0]),
+                "model_size": f.size,
+            }
+            for f in run.families
+        ],
+        "cases": [
+            {"family": c.family.name, "scale": c.scale, "truth": _similarity_json(c.truth)} for c in run.cases
+        ],
         "records": [record_json(r) for r in run.records],
         "targets": [{"target": c.target, "met": c.met, "detail": c.detail} for c in checks],
     }
     return json.dumps(document, indent=1, ensure_ascii=False)
 
 
-def write_tables(run: BenchmarkRun, checks: Sequence[TargetCheck], environment: dict[str, str],
-                 figures: Sequence[str], out_dir: Path, command: str) -> list[Path]:
+def write_tables(
+    run: BenchmarkRun,
+    checks: Sequence[TargetCheck],
+    environment: dict[str, str],
+    figures: Sequence[str],
+    out_dir: Path,
+    command: str,
+) -> list[Path]:
     out_dir.mkdir(parents=True, exist_ok=True)
     report = out_dir / "README.md"
     report.write_text(markdown_report(run, checks, environment, figures, command))
