@@ -12,7 +12,18 @@ PACKAGE = "frisicp_ros"
 setup(
     name=PACKAGE,
     version="0.1.0",
-    packages=["frisicp_core", "frisicp_ros", "frisicp_ros.bench"],
+    # Layers, each importing only the ones below it: frisicp_ros.cli / .node -> .bag -> .stream ->
+    # frisicp_core; frisicp_bench (the paper's experiments, `frisicp bench`) uses only frisicp_core.
+    packages=[
+        "frisicp_core",
+        "frisicp_ros",
+        "frisicp_ros.stream",
+        "frisicp_ros.node",
+        "frisicp_ros.bag",
+        "frisicp_ros.cli",
+        "frisicp_bench",
+    ],
+    package_data={name: ["py.typed"] for name in ("frisicp_core", "frisicp_ros", "frisicp_bench")},
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
@@ -50,9 +61,9 @@ setup(
     license="BSD-3-Clause",
     entry_points={
         "console_scripts": [
-            "frisicp = frisicp_ros.cli:main",
-            "register_node = frisicp_ros.node:main",
-            "frisicp-demo = frisicp_ros.demo:main",
+            "frisicp = frisicp_ros.cli.main:main",
+            "register_node = frisicp_ros.node.node:main",
+            "frisicp-demo = frisicp_ros.node.demo:main",
         ],
     },
 )

@@ -28,8 +28,8 @@ import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
 
 from frisicp_core import Similarity, bumpy_surface
-from frisicp_ros.outputs import rosbags_message_types
-from frisicp_ros.pointcloud2 import points_to_parts
+from frisicp_ros.stream.outputs import rosbags_message_types
+from frisicp_ros.stream.pointcloud2 import points_to_parts
 
 MODEL_TOPIC, DATA_TOPIC = "/map", "/scan"
 CLOUD_TYPE = "sensor_msgs/msg/PointCloud2"

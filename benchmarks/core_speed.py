@@ -30,7 +30,7 @@ from pykdtree.kdtree import KDTree
 from scipy.spatial import cKDTree
 
 from frisicp_core import Similarity, register, rotation_angle
-from frisicp_ros.cloud_files import read_points
+from frisicp_core.io import read_points
 
 ROOT = Path(__file__).resolve().parents[1]
 BUNNY = ROOT.parent / "shared" / "data" / "bunny" / "bun_zipper.ply"

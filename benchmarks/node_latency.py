@@ -69,9 +69,9 @@ def main() -> int:
     from sensor_msgs.msg import PointCloud2
 
     from frisicp_core import Similarity, bumpy_surface
-    from frisicp_ros.demo import stop_node
-    from frisicp_ros.outputs import rclpy_message_types
-    from frisicp_ros.pointcloud2 import points_to_parts
+    from frisicp_ros.node.demo import stop_node
+    from frisicp_ros.stream.outputs import rclpy_message_types
+    from frisicp_ros.stream.pointcloud2 import points_to_parts
 
     node = subprocess.Popen(
         [

@@ -3,7 +3,7 @@
     .venv/bin/python benchmarks/rclpy_data_setter.py
     ROS_PYTHON_CHECK_FIELDS=1 .venv/bin/python benchmarks/rclpy_data_setter.py
 
-Why frisicp_ros.outputs fills ``data`` with an ``array.array('B')`` (frombytes of the numpy
+Why frisicp_ros.stream.outputs fills ``data`` with an ``array.array('B')`` (frombytes of the numpy
 buffer): other value types go through per-element conversion or checks. Figures: docs/node.md.
 No ROS communication (messages are only constructed).
 """

@@ -1,0 +1,75 @@
+"""The real data of ../shared/data: MPEG-7 contours, Stanford bunny point sets and scan poses.
+
+Nothing is copied into the repository; every loader raises :class:`DataMissingError` with the
+path it looked for when the data is absent.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+
+from frisicp_core import Similarity
+from frisicp_core.io import read_points
+from frisicp_core.similarity import FloatArray
+
+from .contours import outer_contour
+
+# Where the data is when --data is not given: this variable, else ../shared/data from the current
+# directory (the repository root, in CI and development checkouts: `make bench-paper` runs there).
+DATA_DIR_VARIABLE = "FRISICP_DATA"
+FALLBACK_DATA_DIR = Path("..") / "shared" / "data"
+
+# The bunny PLY files are in metres; the benchmark works in millimetres so RMS values read
+# naturally (the scans' noise is a fraction of a millimetre).
+MILLIMETRES_PER_METRE = 1000.0
+
+
+def default_data_dir() -> Path:
+    """``$FRISICP_DATA`` if set, else ``../shared/data`` relative to the current directory."""
+    return Path(os.environ.get(DATA_DIR_VARIABLE) or FALLBACK_DATA_DIR)
+
+
+class DataMissingError(FileNotFoundError):
+    """A data file the benchmark needs is not there; the message says which and where."""
+
+
+def require(path: Path) -> Path:
+    if not path.exists():
+        raise DataMissingError(
+            f"{path} is missing: the benchmark reads the real data from ../shared/data beside the "
+            "repository, $FRISICP_DATA or --data DIR; it is not shipped with the package"
+        )
+    return path
+
+
+def silhouette_contour(data_dir: Path, shape_class: str, instance: int) -> FloatArray:
+    """Outer contour (pixels, y up) of MPEG-7 ``CLASS-K.gif``."""
+    from PIL import Image  # the bench extra; only the 2-D families need it
+
+    path = require(data_dir / "mpeg7" / f"{shape_class}-{instance}.gif")
+    with Image.open(path) as image:
+        return outer_contour(np.asarray(image))
+
+
+def bunny_points(data_dir: Path, name: str) -> FloatArray:
+    """Vertices of ``bunny/NAME`` (a .ply file) in millimetres."""
+    return read_points(require(data_dir / "bunny" / name)) * MILLIMETRES_PER_METRE
+
+
+def scan_pose(data_dir: Path, name: str) -> Similarity:
+    """Pose of a scan in the common frame, in millimetres, from ``bun.conf``.
+
+    ``bmesh FILE tx ty tz qi qj qk qw`` maps a scan point p to ``R(q)^T p + t`` (the transpose
+    is the data README's checked convention).
+    """
+    conf = require(data_dir / "bunny" / "bun.conf")
+    for line in conf.read_text().splitlines():
+        fields = line.split()
+        if fields[:2] == ["bmesh", name]:
+            values = np.array(fields[2:9], dtype=np.float64)
+            rotation = Similarity.from_quaternion(1.0, values[3:7], np.zeros(3)).rotation
+            return Similarity(1.0, rotation.T, values[:3] * MILLIMETRES_PER_METRE)
+    raise DataMissingError(f"{conf} has no 'bmesh {name}' line")

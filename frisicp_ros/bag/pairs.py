@@ -1,0 +1,118 @@
+"""The (model, data) cloud pairs of a bag, in bag order, paired exactly as the node pairs them.
+
+Messages are read with ``bag_reader``, paired by the shared ``pairing.Pairer`` on their header
+stamps, and handed on as :class:`PlainCloud`: the PointCloud2 fields as plain picklable values.
+rosbags' message classes are generated at run time and do not unpickle in a worker process;
+PlainCloud does, shares the bytes of the original message (no copy), and is duck-type
+compatible with ``pointcloud2`` and ``pipeline`` (``header.stamp``, ``fields[i].name`` ...).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from frisicp_ros.bag.reader import BagError, read_messages
+from frisicp_ros.stream.pairing import Pairer
+from frisicp_ros.stream.pointcloud2 import CloudParts, field_specs
+
+
+@dataclass(frozen=True)
+class Stamp:
+    sec: int
+    nanosec: int
+
+
+@dataclass(frozen=True)
+class Header:
+    stamp: Stamp
+    frame_id: str
+
+
+@dataclass(frozen=True)
+class PlainCloud(CloudParts):
+    """A PointCloud2 as plain values: the shared CloudParts plus the header."""
+
+    header: Header
+
+    @classmethod
+    def from_message(cls, msg: Any) -> PlainCloud:
+        """Copy the scalar fields of a deserialized PointCloud2; ``data`` is shared, not copied."""
+        stamp = msg.header.stamp
+        return cls(
+            header=Header(Stamp(int(stamp.sec), int(stamp.nanosec)), str(msg.header.frame_id)),
+            height=int(msg.height),
+            width=int(msg.width),
+            fields=field_specs(msg.fields),
+            is_bigendian=bool(msg.is_bigendian),
+            point_step=int(msg.point_step),
+            row_step=int(msg.row_step),
+            data=np.asarray(msg.data, dtype=np.uint8),
+            is_dense=bool(msg.is_dense),
+        )
+
+    @property
+    def stamp_ns(self) -> int:
+        return self.header.stamp.sec * 1_000_000_000 + self.header.stamp.nanosec
+
+
+@dataclass(frozen=True)
+class StampedCloud:
+    bag_ns: int  # receive time in the bag
+    ordinal: int  # 0-based position among the messages of its topic
+    cloud: PlainCloud
+
+
+@dataclass(frozen=True)
+class BagPair:
+    index: int  # 0-based, in bag order
+    model: StampedCloud
+    data: StampedCloud
+
+
+@dataclass
+class PairReading:
+    """Iterates the pairs; afterwards ``stopped`` says why reading ended early (None: bag end)."""
+
+    reader: Any  # an open rosbags AnyReader
+    model_topic: str
+    data_topic: str
+    pairer: Pairer[StampedCloud, StampedCloud]
+    stopped: str | None = None
+    data_clouds: int = 0  # data messages read so far
+    model_clouds: int = 0
+
+    def __iter__(self) -> Iterator[BagPair]:
+        index = 0
+        try:
+            for message in read_messages(self.reader, [self.model_topic, self.data_topic]):
+                if message.error is not None:
+                    self.stopped = (
+                        f"message {message.index} ({message.topic} at bag time "
+                        f"{message.stamp_ns} ns) cannot be decoded: {message.error}"
+                    )
+                    return
+                is_data = message.topic == self.data_topic
+                ordinal = self.data_clouds if is_data else self.model_clouds
+                try:
+                    cloud = StampedCloud(message.stamp_ns, ordinal, PlainCloud.from_message(message.message))
+                except (AttributeError, TypeError, ValueError) as err:
+                    self.stopped = (
+                        f"message {message.index} ({message.topic} at bag time "
+                        f"{message.stamp_ns} ns) is not a usable PointCloud2: {err}"
+                    )
+                    return
+                if is_data:
+                    self.data_clouds += 1
+                    pairs = self.pairer.add_data(cloud.cloud.stamp_ns, cloud)
+                else:
+                    self.model_clouds += 1
+                    pairs = self.pairer.add_model(cloud.cloud.stamp_ns, cloud)
+                for model, data in pairs:
+                    yield BagPair(index, model, data)
+                    index += 1
+        except BagError as err:
+            self.stopped = str(err)

@@ -1,0 +1,1 @@
+"""The ``frisicp`` command line: ``main`` and one module per subcommand."""

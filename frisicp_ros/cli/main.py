@@ -1,0 +1,45 @@
+"""The ``frisicp`` command: one argparse front end, one module per subcommand.
+
+Each subcommand module exposes ``add_parser(subparsers)``, which registers its parser and sets
+``func`` (called with the parsed arguments, returns the exit code). Errors meant for the user
+are raised as :class:`CommandError` and printed without a traceback. Subcommands import their
+heavy dependencies (rosbags, the benchmark) inside ``run``, so ``frisicp --help`` stays light.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from collections.abc import Sequence
+
+from frisicp_ros.cli import bag, bag_info, bench, register
+from frisicp_ros.cli.errors import CommandError
+
+# In the order `frisicp --help` lists them.
+SUBCOMMANDS = (register, bag, bag_info, bench)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="frisicp", description="Scale-aware point cloud registration (FRISICP)."
+    )
+    subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
+    for subcommand in SUBCOMMANDS:
+        subcommand.add_parser(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    try:
+        return int(args.func(args) or 0)
+    except CommandError as err:
+        print(f"frisicp {args.command}: error: {err}", file=sys.stderr)
+        return err.code
+    except KeyboardInterrupt:
+        print(f"frisicp {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

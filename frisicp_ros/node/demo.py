@@ -1,0 +1,284 @@
+"""``frisicp-demo`` (``make demo``): the live node on a built-in shape, estimates vs truth.
+
+Starts ``register_node`` as its own process (as ``ros2 run`` would), publishes the built-in
+bumpy surface once as a latched model and, a few times per second, a scaled, rotated, shifted,
+noisy copy as the data stream whose true similarity keeps changing; prints the node's estimate
+next to the truth. DDS stays on loopback in its own domain, so nothing leaves this machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from frisicp_core import Similarity, bumpy_surface, rotation_angle
+
+DEFAULT_DOMAIN_ID = 142
+STARTUP_TIMEOUT = 30.0  # s for the node to start and answer the first cloud
+DRAIN_SECONDS = 3.0  # s to wait for the last answer after the stream stops
+
+
+@dataclass(frozen=True)
+class Estimate:
+    similarity: Similarity
+    received_at: float
+
+
+def truth_at(t: float) -> Similarity:
+    """A slowly changing similarity: scale 0.7..1.3, rotation about a wandering axis, a circling shift."""
+    angle = np.deg2rad(25.0 * np.sin(0.4 * t))
+    axis = np.array([np.sin(0.2 * t), 1.0, 0.3])
+    axis /= np.linalg.norm(axis)
+    skew = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    rotation = np.eye(3) + np.sin(angle) * skew + (1 - np.cos(angle)) * skew @ skew
+    return Similarity(
+        1.0 + 0.3 * np.sin(0.5 * t), rotation, np.array([0.5 * np.cos(0.3 * t), 0.5 * np.sin(0.3 * t), 0.2])
+    )
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(prog="frisicp-demo", description=__doc__.splitlines()[0])
+    parser.add_argument(
+        "--duration", type=float, default=8.0, help="seconds of streaming after the first answer (default 8)"
+    )
+    parser.add_argument("--rate", type=float, default=2.0, help="data clouds per second (default 2)")
+    parser.add_argument("--points", type=int, default=5000, help="points per data cloud (default 5000)")
+    parser.add_argument("--noise", type=float, default=0.005, help="Gaussian noise sigma (default 0.005)")
+    parser.add_argument(
+        "--max-points",
+        type=int,
+        default=2500,
+        help="node's max_points: the cap that bounds latency (default 2500)",
+    )
+    parser.add_argument(
+        "--domain-id",
+        type=int,
+        default=DEFAULT_DOMAIN_ID,
+        help=f"ROS_DOMAIN_ID of the demo (default {DEFAULT_DOMAIN_ID})",
+    )
+    return parser.parse_args(argv)
+
+
+def isolate_dds(domain_id: int) -> dict[str, str]:
+    """Loopback-only discovery in the demo's own domain (set before rclpy is imported)."""
+    os.environ["ROS_DOMAIN_ID"] = str(domain_id)
+    os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    os.environ.pop("ROS_STATIC_PEERS", None)
+    return dict(os.environ)
+
+
+def register_node_command(max_points: int) -> list[str]:
+    beside = Path(sys.executable).parent / "register_node"
+    script = str(beside) if beside.exists() else shutil.which("register_node")
+    if script is None:
+        raise SystemExit("frisicp-demo: register_node is not installed (pip install -e '.[ros]')")
+    return [
+        script,
+        "--ros-args",
+        "-r",
+        "model:=/frisicp_demo/model",
+        "-r",
+        "data:=/frisicp_demo/data",
+        "-p",
+        "model_qos:=transient_local",
+        "-p",
+        f"max_points:={max_points}",
+        "-p",
+        "data_frame:=demo_sensor",
+    ]
+
+
+def stop_node(node: subprocess.Popen, timeout: float) -> str:
+    """SIGINT a node started with stderr=PIPE, as Ctrl-C would; kill it if it outlives ``timeout``.
+    Returns what it wrote to stderr."""
+    node.send_signal(signal.SIGINT)
+    try:
+        return node.communicate(timeout=timeout)[1]
+    except subprocess.TimeoutExpired:
+        node.kill()
+        return node.communicate()[1]
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse_args(argv)
+    env = isolate_dds(args.domain_id)
+    node = subprocess.Popen(
+        register_node_command(args.max_points),
+        env=env,
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    print(f"frisicp demo: register_node running (pid {node.pid}), ROS domain {args.domain_id}, loopback only")
+    try:
+        registered, sent = run_stream(args)
+    except KeyboardInterrupt:
+        registered, sent = [], 0
+        print("\ninterrupted")
+    finally:
+        node_log = stop_node(node, timeout=20)
+    clean = node.returncode == 0 and "Traceback" not in node_log
+    print_summary(registered, sent, clean)
+    if not clean:
+        print(node_log, file=sys.stderr)
+    return 0 if clean and registered else 1
+
+
+def run_stream(args: argparse.Namespace) -> tuple[list[tuple[Similarity, Similarity, float, float]], int]:
+    """Publish for ``args.duration`` s; return (truth, estimate, rms, latency) per answered cloud."""
+    import rclpy
+    from geometry_msgs.msg import TransformStamped
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import PointCloud2
+    from std_msgs.msg import Float64
+
+    from frisicp_ros.stream.outputs import rclpy_message_types
+    from frisicp_ros.stream.pointcloud2 import points_to_parts
+
+    types = rclpy_message_types()
+    context = rclpy.Context()
+    rclpy.init(context=context, signal_handler_options=rclpy.SignalHandlerOptions.NO)
+    publisher_node = rclpy.create_node("frisicp_demo_publisher", context=context)
+    latched = QoSProfile(
+        depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
+    )
+    model_pub = publisher_node.create_publisher(PointCloud2, "/frisicp_demo/model", latched)
+    data_pub = publisher_node.create_publisher(PointCloud2, "/frisicp_demo/data", 10)
+    lock = threading.Lock()
+    transforms: dict[int, TransformStamped] = {}
+    arrival: dict[int, float] = {}
+    scales: list[float] = []
+    rms: list[float] = []
+
+    def on_transform(msg: TransformStamped) -> None:
+        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        with lock:
+            transforms[stamp], arrival[stamp] = msg, time.monotonic()
+
+    # scale and rms arrive in the same order as the transforms (same publisher thread, one each)
+    publisher_node.create_subscription(TransformStamped, "/frisicp/transform", on_transform, 10)
+    publisher_node.create_subscription(Float64, "/frisicp/scale", lambda m: scales.append(m.data), 10)
+    publisher_node.create_subscription(Float64, "/frisicp/rms", lambda m: rms.append(m.data), 10)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(publisher_node)
+    spinner = threading.Thread(target=executor.spin, daemon=True)
+    spinner.start()
+
+    model_points = bumpy_surface(20000, seed=0)
+    model_pub.publish(types.point_cloud(points_to_parts(model_points), types.header(0, "demo_map")))
+    rng = np.random.default_rng(7)
+    sent: dict[int, tuple[Similarity, float]] = {}
+    order: list[int] = []
+    printed = 0
+    print("model: bumpy surface, 20000 points, latched on /frisicp_demo/model (frame demo_map)")
+    print(
+        f"data:  {args.points} points at {args.rate:g} Hz, noise sigma {args.noise:g}, changing truth,"
+        " on /frisicp_demo/data (frame demo_sensor)\n"
+    )
+    print("latency = data cloud published -> ~/transform received; rms in model units\n")
+    print(
+        f"{'t (s)':>6}  {'scale true':>10}  {'scale est':>10}  {'rot true':>8}  {'rot err':>8}"
+        f"  {'trans err':>9}  {'rms':>8}  {'latency':>8}"
+    )
+    start = time.monotonic()
+    next_send = start
+    streaming_until: float | None = None  # set at the first answer: DDS discovery is not demo time
+    try:
+        while True:
+            now = time.monotonic()
+            if streaming_until is None and _answered(order, transforms, lock):
+                streaming_until = now + args.duration
+            if now - start > STARTUP_TIMEOUT and streaming_until is None:
+                print(f"no answer from register_node within {STARTUP_TIMEOUT:.0f} s")
+                break
+            if streaming_until is not None and now >= streaming_until:
+                # let the last cloud in flight come back, then stop
+                if order[-1] in transforms or now >= streaming_until + DRAIN_SECONDS:
+                    break
+            elif now >= next_send:
+                truth = truth_at(now - start)
+                sample = bumpy_surface(args.points, seed=int(rng.integers(1 << 30)))
+                data = truth.inverse().apply(sample) + rng.normal(scale=args.noise, size=sample.shape)
+                stamp = int(time.time() * 1e9)
+                data_pub.publish(types.point_cloud(points_to_parts(data), types.header(stamp, "demo_sensor")))
+                sent[stamp] = (truth, now)
+                order.append(stamp)
+                next_send += 1.0 / args.rate
+            printed = print_new_rows(order, sent, transforms, arrival, scales, rms, lock, start, printed)
+            time.sleep(0.01)
+    finally:
+        executor.shutdown(timeout_sec=5)
+        spinner.join(timeout=5)  # a spin still inside rcl at interpreter exit aborts the process
+        publisher_node.destroy_node()
+        rclpy.shutdown(context=context)
+    print_new_rows(order, sent, transforms, arrival, scales, rms, lock, start, printed)
+    return _collect(order, sent, transforms, arrival, scales, rms, lock), len(order)
+
+
+def _answered(order, transforms, lock) -> list[int]:
+    with lock:
+        return [stamp for stamp in order if stamp in transforms]
+
+
+def _collect(order, sent, transforms, arrival, scales, rms, lock):
+    rows = []
+    for index, stamp in enumerate(_answered(order, transforms, lock)):
+        if index >= len(scales) or index >= len(rms):
+            break
+        msg = transforms[stamp]
+        q, t = msg.transform.rotation, msg.transform.translation
+        estimate = Similarity.from_quaternion(scales[index], [q.x, q.y, q.z, q.w], [t.x, t.y, t.z])
+        truth, sent_at = sent[stamp]
+        rows.append((truth, estimate, rms[index], arrival[stamp] - sent_at))
+    return rows
+
+
+def print_new_rows(order, sent, transforms, arrival, scales, rms, lock, start, printed) -> int:
+    rows = _collect(order, sent, transforms, arrival, scales, rms, lock)
+    answered = _answered(order, transforms, lock)
+    for (truth, estimate, error, latency), stamp in zip(rows[printed:], answered[printed:]):
+        rot_err = np.degrees(rotation_angle(estimate.rotation.T @ truth.rotation))
+        trans_err = np.linalg.norm(estimate.translation - truth.translation)
+        print(
+            f"{sent[stamp][1] - start:6.1f}  {truth.scale:10.4f}  {estimate.scale:10.4f}"
+            f"  {np.degrees(truth.rotation_angle()):7.1f}°  {rot_err:7.3f}°  {trans_err:9.4f}"
+            f"  {error:8.4f}  {latency * 1e3:6.0f} ms",
+            flush=True,
+        )
+    return len(rows)
+
+
+def print_summary(rows, sent: int, clean: bool) -> None:
+    print()
+    if rows:
+        scale_err = np.median([abs(e.scale / t.scale - 1) for t, e, _, _ in rows]) * 100
+        rot_err = np.median([np.degrees(rotation_angle(e.rotation.T @ t.rotation)) for t, e, _, _ in rows])
+        trans_err = np.median([np.linalg.norm(e.translation - t.translation) for t, e, _, _ in rows])
+        latency = np.median([lat for *_, lat in rows]) * 1e3
+        print(
+            f"registered {len(rows)} of {sent} data clouds (the rest were replaced by newer ones while"
+            f" the node was busy); median errors: scale {scale_err:.3f} %, rotation {rot_err:.3f}°,"
+            f" translation {trans_err:.4f}; median latency {latency:.0f} ms"
+        )
+    else:
+        print(f"no estimate received for {sent} data clouds")
+    print(
+        "register_node stopped cleanly (SIGINT, exit code 0)"
+        if clean
+        else "register_node did NOT exit cleanly"
+    )
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,282 @@
+"""``register_node``: the FRISICP ROS 2 node (thin glue around the shared pipeline).
+
+Subscribes ``model`` and ``data`` (sensor_msgs/PointCloud2), pairs them (``pairing``), hands the
+newest pair to one worker thread (registration never runs in an executor callback), and
+publishes ``~/transform``, ``~/scale``, ``~/rms``, ``~/similarity``, ``~/aligned`` and
+``/diagnostics``. See docs/node.md.
+"""
+
+from __future__ import annotations
+
+import os
+
+# One OpenMP thread for pykdtree unless the user chose otherwise: most queries are small, and on
+# a 2-core machine the thread overhead made registration 1.3-1.5x slower (docs/node.md,
+# docs/core_speed_omp1.md). It must be set before pykdtree loads, as libgomp reads it at load.
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+import sys
+import threading
+import time
+from dataclasses import dataclass
+from typing import Any
+
+import rclpy
+import rclpy.logging
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from rcl_interfaces.msg import SetParametersResult
+from rclpy.exceptions import ParameterException
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+from rclpy.qos import (
+    DurabilityPolicy,
+    HistoryPolicy,
+    QoSProfile,
+    ReliabilityPolicy,
+    qos_profile_sensor_data,
+)
+from sensor_msgs.msg import PointCloud2
+from std_srvs.srv import Trigger
+
+from frisicp_ros.node import parameters
+from frisicp_ros.node.newest_slot import NewestWinsSlot
+from frisicp_ros.node.replay import BagReplay, declare_replay_parameters
+from frisicp_ros.node.status import NodeStatus
+from frisicp_ros.stream.outputs import (
+    ALWAYS_PUBLISHED,
+    OUTPUT_TOPICS,
+    MessageTypes,
+    build_outputs,
+    rclpy_message_types,
+)
+from frisicp_ros.stream.pairing import Pairer
+from frisicp_ros.stream.pipeline import PairOutcome, PipelineSettings, RegistrationPipeline
+from frisicp_ros.stream.pointcloud2 import stamp_ns
+
+NODE_NAME = "frisicp"
+_WARN_THROTTLE_SEC = 2.0
+_WORKER_POLL_SEC = 0.2  # how often an idle worker looks at the stop flag
+_WORKER_JOIN_SEC = 10.0  # a running registration is not interruptible; wait for it this long
+
+SUBSCRIPTION_QOS = {
+    "sensor_data": qos_profile_sensor_data,  # best effort, volatile, depth 5
+    "reliable": QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE),
+    # A latched map: receives the last map published before this node started.
+    "transient_local": QoSProfile(
+        depth=1,
+        history=HistoryPolicy.KEEP_LAST,
+        reliability=ReliabilityPolicy.RELIABLE,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL,
+    ),
+}
+OUTPUT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+
+
+@dataclass(frozen=True)
+class PendingPair:
+    model: PointCloud2
+    data: PointCloud2
+    received_at: float  # time.monotonic() when the data cloud (or the completing cloud) arrived
+
+
+class RegistrationNode(Node):
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        parameters.declare(self)
+        values = parameters.current_values(self)
+        settings = parameters.settings_from(values)  # a bad --params-file value fails here, loudly
+        self._types: MessageTypes = rclpy_message_types()
+        self._pipeline = RegistrationPipeline(settings)
+        self._pairer_lock = threading.Lock()
+        self._pairer: Pairer[PointCloud2, PointCloud2] = Pairer(settings.pairing, settings.sync_tolerance)
+        self._slot: NewestWinsSlot[PendingPair] = NewestWinsSlot()
+        self._status = NodeStatus()
+        # Hand-overs to the worker, applied between pairs (a registration cannot be interrupted).
+        self._reset_requested = threading.Event()
+        self._new_settings: PipelineSettings | None = None
+
+        self._output_publishers = {
+            suffix: self.create_publisher(self._types[type_name], f"~/{suffix}", OUTPUT_QOS)
+            for suffix, type_name in OUTPUT_TOPICS.items()
+        }
+        self._diagnostics_publisher = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
+        # With the `bag` parameter the clouds come from a bag instead of subscriptions (replay.py).
+        replay = declare_replay_parameters(self)
+        self._replay = (
+            None if replay is None else BagReplay(self, replay, self._pipeline, self.publish_outcome)
+        )
+        if self._replay is None:
+            self.create_subscription(
+                PointCloud2, "model", self._on_model, SUBSCRIPTION_QOS[values["model_qos"]]
+            )
+            self.create_subscription(PointCloud2, "data", self._on_data, SUBSCRIPTION_QOS[values["data_qos"]])
+        self.create_service(Trigger, "~/reset", self._on_reset)
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        self.create_timer(values["diagnostics_period"], self._publish_diagnostics)
+
+        self._stopping = threading.Event()
+        self._worker = threading.Thread(target=self._work, name="frisicp-registration", daemon=True)
+        self._worker.start()
+        if self._replay is not None:
+            self._replay.start()
+        self.get_logger().info(
+            f"registering '{self.resolve_topic_name('data')}' onto '{self.resolve_topic_name('model')}'"
+            f" ({settings.pairing}, {settings.dims}-D, max_points {settings.max_points or 'unlimited'})"
+        )
+
+    # --- inputs (executor callbacks: cheap, never register) ---------------------------------------
+
+    def _on_model(self, msg: PointCloud2) -> None:
+        self._status.count_input("model")
+        with self._pairer_lock:
+            pairs = self._pairer.add_model(stamp_ns(msg), msg)
+        self._hand_over(pairs)
+
+    def _on_data(self, msg: PointCloud2) -> None:
+        self._status.count_input("data")
+        with self._pairer_lock:
+            pairs = self._pairer.add_data(stamp_ns(msg), msg)
+        self._hand_over(pairs)
+
+    def _hand_over(self, pairs: list[tuple[PointCloud2, PointCloud2]]) -> None:
+        now = time.monotonic()
+        for model, data in pairs:
+            self._slot.put(PendingPair(model, data, now))
+
+    def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
+        with self._pairer_lock:
+            self._pairer.reset()
+        self._slot.clear()
+        self._reset_requested.set()
+        response.success = True
+        response.message = "stored model, pending pair and warm start cleared"
+        self.get_logger().info(response.message)
+        return response
+
+    # --- parameters -----------------------------------------------------------------------------
+
+    def _validate_parameters(self, changes: list[Parameter]) -> SetParametersResult:
+        """Reject a change the core would reject, with its reason; the old value stays."""
+        try:
+            parameters.settings_from(parameters.with_changes(self, changes))
+        except ValueError as err:
+            return SetParametersResult(successful=False, reason=str(err))
+        return SetParametersResult(successful=True)
+
+    def _apply_parameters(self, changes: list[Parameter]) -> None:
+        settings = parameters.settings_from(parameters.current_values(self))
+        if any(p.name in ("pairing", "sync_tolerance") for p in changes):
+            with self._pairer_lock:
+                self._pairer = Pairer(settings.pairing, settings.sync_tolerance)
+        self._new_settings = settings
+        self.get_logger().info("parameters changed: " + ", ".join(f"{p.name}={p.value!r}" for p in changes))
+
+    # --- the worker -----------------------------------------------------------------------------
+
+    def _work(self) -> None:
+        while not self._stopping.is_set():
+            pending = self._slot.take(timeout=_WORKER_POLL_SEC)
+            self._apply_handovers()
+            if pending is None:
+                continue
+            outcome = self._pipeline.process(pending.model, pending.data)
+            if self._reset_requested.is_set():
+                continue  # reset while registering: the result belongs to the old state
+            try:
+                self.publish_outcome(outcome, pending.received_at)
+            except Exception:
+                if self.context.ok() and not self._stopping.is_set():
+                    raise
+                return
+
+    def _apply_handovers(self) -> None:
+        settings, self._new_settings = self._new_settings, None
+        if settings is not None:
+            self._pipeline.update_settings(settings)
+        if self._reset_requested.is_set():
+            self._reset_requested.clear()
+            self._pipeline.reset()
+
+    # --- outputs --------------------------------------------------------------------------------
+
+    def publish_outcome(self, outcome: PairOutcome, received_at: float | None = None) -> None:
+        """Publish one pair's outputs (or warn about its rejection) and count it.
+
+        The single publishing path: the worker calls it, and so can a bag replay loop
+        (``received_at`` None: no latency is recorded).
+        """
+        started = time.perf_counter()
+        if not outcome.ok:
+            self.get_logger().warning(
+                f"skipped: {outcome.rejection}", throttle_duration_sec=_WARN_THROTTLE_SEC
+            )
+            self._status.record(outcome, None, 0.0)
+            return
+        topics = ALWAYS_PUBLISHED
+        if (
+            self._pipeline.settings.publish_aligned
+            and self._output_publishers["aligned"].get_subscription_count()
+        ):
+            topics = (*ALWAYS_PUBLISHED, "aligned")
+        for suffix, message in build_outputs(outcome, self._types, topics).items():
+            self._output_publishers[suffix].publish(message)
+        latency = None if received_at is None else time.monotonic() - received_at
+        self._status.record(outcome, latency, time.perf_counter() - started)
+        if not outcome.result.converged:
+            self.get_logger().warning(
+                "registration did not converge (published anyway)", throttle_duration_sec=_WARN_THROTTLE_SEC
+            )
+
+    def _publish_diagnostics(self) -> None:
+        with self._pairer_lock:
+            unpaired, has_model = self._pairer.unpaired_data, self._pairer.latest_model is not None
+        report = self._status.report(
+            self._slot.dropped, unpaired, has_model or self._pairer.mode != "latest_model"
+        )
+        status = DiagnosticStatus(
+            level=bytes([report.level]),
+            name=f"{self.get_name()}: registration",
+            message=report.message,
+            hardware_id=self.get_fully_qualified_name(),
+            values=[KeyValue(key=key, value=value) for key, value in report.values.items()],
+        )
+        array = DiagnosticArray(status=[status])
+        array.header.stamp = self.get_clock().now().to_msg()  # diagnostics describe "now", not a cloud
+        self._diagnostics_publisher.publish(array)
+
+    # --- shutdown -------------------------------------------------------------------------------
+
+    def destroy_node(self) -> None:
+        """Stop the worker before the publishers it uses are destroyed."""
+        self._stopping.set()
+        self._slot.close()
+        if self._replay is not None:
+            self._replay.stop(_WORKER_JOIN_SEC)
+        if self._worker.is_alive() and threading.current_thread() is not self._worker:
+            self._worker.join(_WORKER_JOIN_SEC)
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Console script ``register_node``; Ctrl-C and external shutdown end it quietly (code 0)."""
+    rclpy.init(args=args)
+    node: RegistrationNode | None = None
+    try:
+        node = RegistrationNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (ValueError, ParameterException) as err:  # e.g. a bad --params-file value
+        rclpy.logging.get_logger(NODE_NAME).fatal(f"invalid parameters: {err}")
+        return 2
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,131 @@
+"""What the node reports on /diagnostics, counted without ROS (thread-safe, bounded memory).
+
+Callbacks count inputs, the worker records outcomes, the diagnostics timer takes a
+:class:`StatusReport` once per period. Rates are per period; latency percentiles are over the
+last ``window`` pairs.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from collections import Counter, deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from frisicp_ros.stream.pipeline import PairOutcome
+
+OK, WARN, ERROR = 0, 1, 2  # diagnostic_msgs/DiagnosticStatus levels
+ERROR_AFTER_REJECTIONS = 3  # consecutive rejected pairs before the status is ERROR
+
+
+@dataclass(frozen=True)
+class StatusReport:
+    level: int
+    message: str
+    values: dict[str, str]
+
+
+class NodeStatus:
+    def __init__(self, window: int = 200) -> None:
+        self._lock = threading.Lock()
+        self._inputs: Counter[str] = Counter()  # since the last report
+        self._rejected: Counter[str] = Counter()  # totals by 'model' | 'data' | 'pair'
+        self._last_rejection = ""
+        self._consecutive_rejections = 0
+        self._registered = 0
+        self._registered_since_report = 0
+        self._last_outcome: PairOutcome | None = None
+        self._latency: deque[float] = deque(maxlen=window)
+        self._node_seconds: deque[float] = deque(maxlen=window)  # conversion + publication
+        self._core_seconds: deque[float] = deque(maxlen=window)
+        self._reported_at = time.monotonic()
+
+    def count_input(self, topic: str) -> None:
+        with self._lock:
+            self._inputs[topic] += 1
+
+    def record(self, outcome: PairOutcome, latency: float | None, publish_seconds: float) -> None:
+        """One processed pair; ``latency`` from data receipt to publication (None in replay)."""
+        with self._lock:
+            if not outcome.ok:
+                self._rejected[outcome.rejected_input or "pair"] += 1
+                self._last_rejection = outcome.rejection or ""
+                self._consecutive_rejections += 1
+                return
+            self._consecutive_rejections = 0
+            self._registered += 1
+            self._registered_since_report += 1
+            self._last_outcome = outcome
+            if latency is not None:
+                self._latency.append(latency)
+            self._node_seconds.append(outcome.timings.convert_seconds + publish_seconds)
+            self._core_seconds.append(outcome.timings.register_seconds)
+
+    def report(self, dropped_pairs: int, unpaired_data: int, has_model: bool) -> StatusReport:
+        with self._lock:
+            now = time.monotonic()
+            period = max(now - self._reported_at, 1e-9)
+            values = {
+                "model rate (Hz)": f"{self._inputs['model'] / period:.2f}",
+                "data rate (Hz)": f"{self._inputs['data'] / period:.2f}",
+                "output rate (Hz)": f"{self._registered_since_report / period:.2f}",
+                "registered pairs": str(self._registered),
+                "dropped pairs": str(dropped_pairs),
+                "unpaired data clouds": str(unpaired_data),
+                "rejected model clouds": str(self._rejected["model"]),
+                "rejected data clouds": str(self._rejected["data"]),
+                "rejected pairs": str(self._rejected["pair"]),
+                "last rejection": self._last_rejection,
+            }
+            values.update(self._latency_values())
+            values.update(self._result_values())
+            self._inputs.clear()
+            self._registered_since_report = 0
+            self._reported_at = now
+            level, message = self._level(has_model)
+            return StatusReport(level, message, values)
+
+    def _latency_values(self) -> dict[str, str]:
+        if not self._core_seconds:
+            return {}
+        values = {}
+        if self._latency:
+            p50, p95 = np.percentile(np.array(self._latency) * 1e3, [50, 95])
+            values = {"latency p50 (ms)": f"{p50:.1f}", "latency p95 (ms)": f"{p95:.1f}"}
+        core = float(np.mean(self._core_seconds))
+        node = float(np.mean(self._node_seconds))
+        values.update(
+            {
+                "registration mean (ms)": f"{core * 1e3:.1f}",
+                "node overhead mean (ms)": f"{node * 1e3:.2f}",
+                "node overhead / registration": f"{node / core:.4f}" if core > 0 else "nan",
+            }
+        )
+        return values
+
+    def _result_values(self) -> dict[str, str]:
+        outcome = self._last_outcome
+        if outcome is None or outcome.result is None:
+            return {}
+        result = outcome.result
+        return {
+            "last rms": f"{result.rms:.6g}",
+            "last scale": f"{result.similarity.scale:.6g}",
+            "last iterations": str(sum(result.iterations)),
+            "last converged": str(result.converged),
+            "last stamp (ns)": str(outcome.stamp_ns),
+            "warm started": str(outcome.warm_started),
+        }
+
+    def _level(self, has_model: bool) -> tuple[int, str]:
+        if self._consecutive_rejections >= ERROR_AFTER_REJECTIONS:
+            return ERROR, f"last {self._consecutive_rejections} pairs rejected: {self._last_rejection}"
+        if self._consecutive_rejections:
+            return WARN, f"last pair rejected: {self._last_rejection}"
+        if self._last_outcome is None:
+            return WARN, "waiting for clouds" if has_model else "waiting for a model cloud"
+        if not self._last_outcome.result.converged:
+            return WARN, "last registration did not converge"
+        return OK, "registering"

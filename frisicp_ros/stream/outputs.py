@@ -1,0 +1,199 @@
+"""The output messages of one PairOutcome, for rclpy (the node) or rosbags (the bag writer).
+
+Both flavours are built by the same code from a :class:`MessageTypes` namespace: every message
+is constructed with all its fields as keywords, which rclpy classes accept and rosbags
+dataclasses require. The only per-flavour difference is the array type of ``data`` fields:
+rclpy wants ``array.array`` (anything else goes through a slow per-element setter, see
+docs/node.md), rosbags wants a numpy array.
+
+Topics are relative to the node (``~/transform`` etc.); ``OUTPUT_TOPICS`` lists suffix -> type.
+
+- ``transform`` TransformStamped: rotation and translation of the similarity (the scale is not
+  representable there), header.frame_id = model frame, child_frame_id = data frame. 2-D results
+  become a rotation about z with z = 0.
+- ``scale``, ``rms`` Float64: plottable as ``/frisicp/scale/data``.
+- ``similarity`` Float64MultiArray: the (m+1)x(m+1) matrix [[s R, t], [0, 1]], row-major,
+  layout.dim = [rows (size m+1, stride (m+1)^2), cols (size m+1, stride m+1)], data_offset 0.
+- ``aligned`` PointCloud2: the data cloud mapped into the model frame, other fields kept.
+"""
+
+from __future__ import annotations
+
+import array
+from collections.abc import Callable
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from frisicp_core import Similarity
+from frisicp_ros.stream.pipeline import PairOutcome
+from frisicp_ros.stream.pointcloud2 import CloudParts, aligned_cloud
+
+OUTPUT_TOPICS: dict[str, str] = {
+    "transform": "geometry_msgs/msg/TransformStamped",
+    "scale": "std_msgs/msg/Float64",
+    "rms": "std_msgs/msg/Float64",
+    "similarity": "std_msgs/msg/Float64MultiArray",
+    "aligned": "sensor_msgs/msg/PointCloud2",
+}
+# Every topic except ``aligned`` is produced for every registered pair.
+ALWAYS_PUBLISHED = ("transform", "scale", "rms", "similarity")
+_NEEDED_TYPES = (
+    "builtin_interfaces/msg/Time",
+    "std_msgs/msg/Header",
+    "geometry_msgs/msg/Vector3",
+    "geometry_msgs/msg/Quaternion",
+    "geometry_msgs/msg/Transform",
+    "std_msgs/msg/MultiArrayDimension",
+    "std_msgs/msg/MultiArrayLayout",
+    "sensor_msgs/msg/PointField",
+    *OUTPUT_TOPICS.values(),
+)
+
+
+@dataclass(frozen=True)
+class MessageTypes:
+    """Message classes by ROS type name, plus how each flavour wants its array fields."""
+
+    classes: dict[str, type]
+    uint8_array: Callable[[np.ndarray], Any]
+    float64_array: Callable[[np.ndarray], Any]
+
+    def __getitem__(self, type_name: str) -> type:
+        return self.classes[type_name]
+
+    def header(self, stamp_ns: int, frame_id: str) -> Any:
+        sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
+        stamp = self["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)
+        return self["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id)
+
+    def point_cloud(self, parts: CloudParts, header: Any) -> Any:
+        field_class = self["sensor_msgs/msg/PointField"]
+        fields = [
+            field_class(name=f.name, offset=f.offset, datatype=f.datatype, count=f.count)
+            for f in parts.fields
+        ]
+        return self["sensor_msgs/msg/PointCloud2"](
+            header=header,
+            height=parts.height,
+            width=parts.width,
+            fields=fields,
+            is_bigendian=parts.is_bigendian,
+            point_step=parts.point_step,
+            row_step=parts.row_step,
+            data=self.uint8_array(parts.data),
+            is_dense=parts.is_dense,
+        )
+
+
+def _rclpy_array(typecode: str, dtype: type) -> Callable[[np.ndarray], array.array]:
+    """array.array is stored as is by rclpy's generated setters; frombytes is one memcpy.
+
+    (Bytes, lists and memoryviews go through per-element checks instead: see docs/node.md.)
+    """
+
+    def convert(values: np.ndarray) -> array.array:
+        out = array.array(typecode)
+        out.frombytes(memoryview(np.ascontiguousarray(values, dtype=dtype)).cast("B"))
+        return out
+
+    return convert
+
+
+def rclpy_message_types() -> MessageTypes:
+    """The rclpy classes (imported here, lazily, so this module works without ROS)."""
+    from importlib import import_module
+
+    classes = {}
+    for name in _NEEDED_TYPES:
+        package, _, message = name.split("/")
+        classes[name] = getattr(import_module(f"{package}.msg"), message)
+    return MessageTypes(classes, _rclpy_array("B", np.uint8), _rclpy_array("d", np.float64))
+
+
+def rosbags_message_types(typestore: Any = None) -> MessageTypes:
+    """The rosbags classes of ``typestore`` (default: the ROS 2 Jazzy store)."""
+    if typestore is None:
+        from rosbags.typesys import Stores, get_typestore
+
+        typestore = get_typestore(Stores.ROS2_JAZZY)
+    classes = {name: typestore.types[name] for name in _NEEDED_TYPES}
+    return MessageTypes(
+        classes,
+        lambda values: np.ascontiguousarray(values, dtype=np.uint8),
+        lambda values: np.ascontiguousarray(values, dtype=np.float64),
+    )
+
+
+def transform_stamped(similarity: Similarity, header: Any, child_frame_id: str, types: MessageTypes) -> Any:
+    rotation, translation = _as_3d(similarity)
+    x, y, z, w = Similarity(1.0, rotation, translation).quaternion()
+    transform = types["geometry_msgs/msg/Transform"](
+        translation=types["geometry_msgs/msg/Vector3"](
+            x=float(translation[0]), y=float(translation[1]), z=float(translation[2])
+        ),
+        rotation=types["geometry_msgs/msg/Quaternion"](x=float(x), y=float(y), z=float(z), w=float(w)),
+    )
+    return types["geometry_msgs/msg/TransformStamped"](
+        header=header, child_frame_id=child_frame_id, transform=transform
+    )
+
+
+def _as_3d(similarity: Similarity) -> tuple[np.ndarray, np.ndarray]:
+    """Rotation and translation embedded in 3-D (a 2-D rotation turns about z)."""
+    if similarity.dim == 3:
+        return similarity.rotation, similarity.translation
+    rotation, translation = np.eye(3), np.zeros(3)
+    rotation[:2, :2] = similarity.rotation
+    translation[:2] = similarity.translation
+    return rotation, translation
+
+
+def similarity_matrix(similarity: Similarity, types: MessageTypes) -> Any:
+    size = similarity.dim + 1
+    dims = [
+        types["std_msgs/msg/MultiArrayDimension"](label="rows", size=size, stride=size * size),
+        types["std_msgs/msg/MultiArrayDimension"](label="cols", size=size, stride=size),
+    ]
+    layout = types["std_msgs/msg/MultiArrayLayout"](dim=dims, data_offset=0)
+    return types["std_msgs/msg/Float64MultiArray"](
+        layout=layout, data=types.float64_array(similarity.matrix().reshape(-1))
+    )
+
+
+def float64(value: float, types: MessageTypes) -> Any:
+    return types["std_msgs/msg/Float64"](data=float(value))
+
+
+def build_outputs(
+    outcome: PairOutcome,
+    types: MessageTypes,
+    topics: tuple[str, ...] = ALWAYS_PUBLISHED,
+) -> dict[str, Any]:
+    """Messages for the requested topic suffixes (subset of OUTPUT_TOPICS) of a registered pair.
+
+    Every message carries the data cloud's stamp; frames come from the clouds.
+    Raises ValueError for a rejected outcome (there is nothing to publish).
+    """
+    if outcome.result is None:
+        raise ValueError(f"rejected pair has no outputs: {outcome.rejection}")
+    unknown = set(topics) - set(OUTPUT_TOPICS)
+    if unknown:
+        raise ValueError(f"unknown output topics {sorted(unknown)}; known: {sorted(OUTPUT_TOPICS)}")
+    similarity = outcome.result.similarity
+    builders: dict[str, Callable[[], Any]] = {
+        "transform": lambda: transform_stamped(
+            similarity, types.header(outcome.stamp_ns, outcome.model_frame), outcome.data_frame, types
+        ),
+        "scale": lambda: float64(similarity.scale, types),
+        "rms": lambda: float64(outcome.result.rms, types),
+        "similarity": lambda: similarity_matrix(similarity, types),
+        "aligned": lambda: aligned_cloud(
+            outcome.data_msg,
+            similarity,
+            outcome.dims,
+            lambda parts: types.point_cloud(parts, types.header(outcome.stamp_ns, outcome.model_frame)),
+        ),
+    }
+    return {topic: builders[topic]() for topic in topics}

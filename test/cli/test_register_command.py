@@ -1,0 +1,113 @@
+"""`frisicp register DATA MODEL`: every supported file format, JSON output, clean errors."""
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from plyfile import PlyData, PlyElement
+from pypcd4 import Encoding, PointCloud
+
+from frisicp_core import Similarity, bumpy_surface, rotation_angle
+from frisicp_core.io import CloudFileError, read_points
+
+FRISICP = str(Path(sys.executable).with_name("frisicp"))
+MODEL = bumpy_surface(2000, seed=3)
+TRUTH = Similarity.from_quaternion(2.5, [0.1, 0.2, 0.3, 0.9], [0.5, -1.0, 2.0])
+DATA = TRUTH.inverse().apply(MODEL)
+
+
+def write_ply(path: Path, points: np.ndarray, text: bool) -> None:
+    vertex = np.array([tuple(p) for p in points], dtype=[("x", "f8"), ("y", "f8"), ("z", "f8")])
+    PlyData([PlyElement.describe(vertex, "vertex")], text=text).write(str(path))
+
+
+def write_pcd(path: Path, points: np.ndarray, encoding: Encoding) -> None:
+    PointCloud.from_xyz_points(points.astype(np.float32)).save(path, encoding=encoding)
+
+
+WRITERS = {
+    "ascii.ply": lambda p, x: write_ply(p, x, text=True),
+    "binary.ply": lambda p, x: write_ply(p, x, text=False),
+    "ascii.pcd": lambda p, x: write_pcd(p, x, Encoding.ASCII),
+    "binary.pcd": lambda p, x: write_pcd(p, x, Encoding.BINARY),
+    "compressed.pcd": lambda p, x: write_pcd(p, x, Encoding.BINARY_COMPRESSED),
+    "plain.xyz": lambda p, x: np.savetxt(p, x),
+    "header.csv": lambda p, x: np.savetxt(p, x, delimiter=",", header="x,y,z", comments=""),
+    "array.npy": lambda p, x: np.save(p, x),
+}
+
+
+@pytest.mark.parametrize("kind", WRITERS)
+def test_every_format_reads_back_the_coordinates(tmp_path, kind):
+    path = tmp_path / kind
+    WRITERS[kind](path, MODEL)
+    tolerance = 1e-6 if kind.endswith(".pcd") else 1e-12  # PCD stores float32
+    np.testing.assert_allclose(read_points(path), MODEL, atol=tolerance * 10)
+
+
+def run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([FRISICP, *args], capture_output=True, text=True, timeout=120)
+
+
+def test_register_prints_json_with_the_documented_keys(tmp_path):
+    WRITERS["binary.ply"](tmp_path / "data.ply", DATA)
+    WRITERS["compressed.pcd"](tmp_path / "model.pcd", MODEL)
+    done = run("register", str(tmp_path / "data.ply"), str(tmp_path / "model.pcd"), "--json")
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout)
+    assert {"scale", "rotation", "translation", "rms", "iterations", "converged", "seconds"} <= out.keys()
+    assert out["scale"] == pytest.approx(2.5, rel=1e-5)
+    assert np.rad2deg(rotation_angle(np.array(out["rotation"]).T @ TRUTH.rotation)) < 0.01
+    np.testing.assert_allclose(out["translation"], TRUTH.translation, atol=1e-3)
+    assert out["converged"] is True
+
+
+def test_register_human_output_and_methods(tmp_path):
+    np.save(tmp_path / "data.npy", DATA)
+    np.save(tmp_path / "model.npy", MODEL)
+    done = run("register", str(tmp_path / "data.npy"), str(tmp_path / "model.npy"), "--method", "icp")
+    assert "method       icp" in done.stdout and "scale        1" in done.stdout
+    done = run("register", str(tmp_path / "data.npy"), str(tmp_path / "model.npy"), "--paper")
+    assert done.returncode == 0 and "quaternion" in done.stdout and "converged    True" in done.stdout
+
+
+@pytest.mark.parametrize(
+    "content, message",
+    [
+        (None, "no such file"),
+        (
+            b"ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nend_header\n1\n",
+            "cannot read it as PLY",
+        ),
+        (b"", "cannot read"),
+    ],
+)
+def test_bad_files_exit_2_with_one_line_and_no_traceback(tmp_path, content, message):
+    path = tmp_path / "broken.ply"
+    if content is not None:
+        path.write_bytes(content)
+    done = run("register", str(path), str(path))
+    assert done.returncode == 2
+    assert message in done.stderr and "Traceback" not in done.stderr
+
+
+def test_nan_points_are_refused_unless_dropping_was_asked_for(tmp_path):
+    data = DATA.copy()
+    data[::100] = np.nan
+    np.save(tmp_path / "data.npy", data)
+    np.save(tmp_path / "model.npy", MODEL)
+    done = run("register", str(tmp_path / "data.npy"), str(tmp_path / "model.npy"))
+    assert done.returncode == 2 and "NaN or Inf" in done.stderr
+    done = run(
+        "register", str(tmp_path / "data.npy"), str(tmp_path / "model.npy"), "--drop-nonfinite", "--json"
+    )
+    assert done.returncode == 0 and json.loads(done.stdout)["scale"] == pytest.approx(2.5, rel=1e-3)
+
+
+def test_unknown_extension(tmp_path):
+    (tmp_path / "cloud.obj").write_text("v 1 2 3\n")
+    with pytest.raises(CloudFileError, match="unknown extension"):
+        read_points(tmp_path / "cloud.obj")

@@ -1,0 +1,91 @@
+"""Similarity algebra and the closed-form estimator."""
+
+import numpy as np
+import pytest
+from support.data import random_rotation
+
+from frisicp_core import Similarity, estimate_similarity, rotation_angle
+
+
+@pytest.mark.parametrize("dim", [2, 3, 4])
+def test_compose_inverse_and_matrix_agree(dim):
+    rng = np.random.default_rng(dim)
+    a = Similarity(2.5, random_rotation(dim, rng), rng.normal(size=dim))
+    b = Similarity(0.3, random_rotation(dim, rng), rng.normal(size=dim))
+    pts = rng.normal(size=(20, dim))
+    np.testing.assert_allclose((a @ b).apply(pts), a.apply(b.apply(pts)), atol=1e-12)
+    np.testing.assert_allclose(a.inverse().apply(a.apply(pts)), pts, atol=1e-12)
+    homogeneous = np.c_[pts, np.ones(20)] @ a.matrix().T
+    np.testing.assert_allclose(homogeneous[:, :dim], a.apply(pts), atol=1e-12)
+    back = Similarity.from_matrix(a.matrix())
+    assert back.scale == pytest.approx(2.5)
+    np.testing.assert_allclose(back.rotation, a.rotation, atol=1e-12)
+
+
+def test_quaternion_round_trip_uses_ros_order_xyzw():
+    quarter_turn_about_z = Similarity.from_quaternion(
+        1.0, [0, 0, np.sin(np.pi / 4), np.cos(np.pi / 4)], [0, 0, 0]
+    )
+    np.testing.assert_allclose(quarter_turn_about_z.apply([1.0, 0, 0]), [0, 1, 0], atol=1e-12)
+    rng = np.random.default_rng(0)
+    for _ in range(50):
+        rot = random_rotation(3, rng)
+        q = Similarity(1.0, rot, np.zeros(3)).quaternion()
+        assert q[3] >= 0 and np.linalg.norm(q) == pytest.approx(1.0)
+        np.testing.assert_allclose(Similarity.from_quaternion(1.0, q, np.zeros(3)).rotation, rot, atol=1e-9)
+
+
+@pytest.mark.parametrize(
+    "bad",
+    [
+        dict(scale=0.0),
+        dict(scale=-1.0),
+        dict(scale=np.nan),
+        dict(rotation=np.diag([1.0, 1.0, -1.0])),
+        dict(rotation=2 * np.eye(3)),
+        dict(translation=[0.0, 0.0]),
+    ],
+)
+def test_invalid_similarities_are_refused(bad):
+    args = dict(scale=1.0, rotation=np.eye(3), translation=np.zeros(3)) | bad
+    with pytest.raises(ValueError):
+        Similarity(**args)
+
+
+@pytest.mark.parametrize("dim", [2, 3, 5])
+@pytest.mark.parametrize("seed", range(5))
+def test_estimate_similarity_is_exact_on_noise_free_pairs(dim, seed):
+    rng = np.random.default_rng(seed)
+    truth = Similarity(rng.uniform(0.05, 20), random_rotation(dim, rng), rng.normal(size=dim) * 10)
+    x = rng.normal(size=(30, dim))
+    est = estimate_similarity(x, truth.apply(x))
+    assert est.scale == pytest.approx(truth.scale, rel=1e-10)
+    assert rotation_angle(est.rotation.T @ truth.rotation) < 1e-7
+    np.testing.assert_allclose(est.translation, truth.translation, atol=1e-8 * truth.scale * 10)
+
+
+def test_estimate_similarity_never_returns_a_reflection():
+    rng = np.random.default_rng(3)
+    x = rng.normal(size=(40, 3))
+    mirrored = x * np.array([1.0, 1.0, -1.0])
+    est = estimate_similarity(x, mirrored)
+    assert np.linalg.det(est.rotation) == pytest.approx(1.0)
+
+
+def test_weights_select_the_pairs_that_count():
+    rng = np.random.default_rng(4)
+    truth = Similarity(1.7, random_rotation(3, rng), [1.0, 2.0, 3.0])
+    x = rng.normal(size=(50, 3))
+    y = truth.apply(x)
+    y[:10] += rng.normal(size=(10, 3)) * 5  # outliers
+    weights = np.r_[np.zeros(10), np.ones(40)]
+    est = estimate_similarity(x, y, weights)
+    assert est.scale == pytest.approx(1.7, rel=1e-10)
+
+
+def test_fixed_and_bounded_scale():
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(30, 3))
+    y = 3.0 * x
+    assert estimate_similarity(x, y, with_scale=False).scale == 1.0
+    assert estimate_similarity(x, y, scale_bounds=(0.5, 2.0)).scale == pytest.approx(2.0)

@@ -1,0 +1,75 @@
+"""The node's ROS-free parts: the newest-wins hand-over and the diagnostics bookkeeping."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import numpy as np
+
+from frisicp_core import bumpy_surface
+from frisicp_ros.node.newest_slot import NewestWinsSlot
+from frisicp_ros.node.status import ERROR, OK, WARN, NodeStatus
+from frisicp_ros.stream.outputs import rosbags_message_types
+from frisicp_ros.stream.pipeline import RegistrationPipeline
+from frisicp_ros.stream.pointcloud2 import points_to_parts
+
+
+def test_slot_keeps_the_newest_and_counts_the_dropped_oldest():
+    slot: NewestWinsSlot[int] = NewestWinsSlot()
+    assert slot.put(1) is False
+    assert slot.put(2) is True and slot.put(3) is True
+    assert slot.dropped == 2 and slot.pending == 1
+    assert slot.take(timeout=0) == 3
+    assert slot.take(timeout=0.01) is None
+    slot.put(4)
+    slot.clear()
+    assert slot.take(timeout=0) is None and slot.dropped == 2  # a reset is not an overload
+
+
+def test_slot_close_wakes_a_waiting_taker_at_once():
+    slot: NewestWinsSlot[int] = NewestWinsSlot()
+    result: list[object] = []
+    taker = threading.Thread(target=lambda: result.append(slot.take(timeout=30)))
+    taker.start()
+    time.sleep(0.05)
+    started = time.monotonic()
+    slot.close()
+    taker.join(5)
+    assert result == [None] and time.monotonic() - started < 1.0
+    slot.put(5)
+    assert slot.take(timeout=0) is None
+
+
+def _outcomes():
+    types = rosbags_message_types()
+    points = bumpy_surface(600, seed=2)
+    model = types.point_cloud(points_to_parts(points * 2.0), types.header(1, "map"))
+    data = types.point_cloud(points_to_parts(points), types.header(2, "lidar"))
+    nan = types.point_cloud(points_to_parts(np.full((10, 3), np.nan)), types.header(3, "lidar"))
+    pipeline = RegistrationPipeline()
+    return pipeline.process(model, data), pipeline.process(model, nan)
+
+
+def test_status_levels_counters_and_latency():
+    good, bad = _outcomes()
+    status = NodeStatus()
+    report = status.report(dropped_pairs=0, unpaired_data=0, has_model=False)
+    assert report.level == WARN and "model" in report.message
+    status.count_input("model")
+    status.count_input("data")
+    status.record(good, latency=0.25, publish_seconds=0.001)
+    report = status.report(dropped_pairs=4, unpaired_data=1, has_model=True)
+    assert report.level == OK
+    assert report.values["dropped pairs"] == "4" and report.values["registered pairs"] == "1"
+    assert float(report.values["latency p50 (ms)"]) == 250.0
+    assert float(report.values["data rate (Hz)"]) > 0 and report.values["last converged"] == "True"
+    status.record(bad, None, 0.0)
+    report = status.report(4, 1, True)
+    assert report.level == WARN and "no finite points" in report.message
+    assert report.values["rejected data clouds"] == "1"
+    status.record(bad, None, 0.0)
+    status.record(bad, None, 0.0)
+    assert status.report(4, 1, True).level == ERROR
+    status.record(good, 0.1, 0.0)
+    assert status.report(4, 1, True).level == OK

@@ -1,0 +1,202 @@
+"""The shared pipeline without ROS: pairing, registration of messages, outputs in both flavours."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from support.data import axis_rotation
+
+from frisicp_core import Similarity, bumpy_surface, closed_contour
+from frisicp_ros.stream.outputs import (
+    OUTPUT_TOPICS,
+    build_outputs,
+    rclpy_message_types,
+    rosbags_message_types,
+)
+from frisicp_ros.stream.pairing import Pairer
+from frisicp_ros.stream.pipeline import PipelineSettings, RegistrationPipeline
+from frisicp_ros.stream.pointcloud2 import points_to_parts
+
+TRUTH = Similarity(1.8, axis_rotation(3, 25.0), np.array([0.4, -0.2, 1.0]))
+
+
+def cloud(points, frame: str, stamp_ns: int, types=None, **extra):
+    types = types or rosbags_message_types()
+    return types.point_cloud(points_to_parts(points, extra or None), types.header(stamp_ns, frame))
+
+
+def scene(n: int = 3000, stamp_ns: int = 5_000_000_123, types=None):
+    """(model msg, data msg) with model = TRUTH(data) exactly."""
+    data = bumpy_surface(n, seed=3)
+    return (
+        cloud(TRUTH.apply(data), "map", stamp_ns - 10**8, types),
+        cloud(data, "lidar", stamp_ns, types, intensity=np.arange(n, dtype=np.float32)),
+    )
+
+
+# --- pairing -------------------------------------------------------------------------------------
+
+
+def test_latest_model_pairs_each_data_with_newest_model():
+    pairer: Pairer[str, str] = Pairer("latest_model")
+    assert pairer.add_data(1, "d0") == [] and pairer.unpaired_data == 1
+    assert pairer.add_model(2, "m1") == []
+    assert pairer.add_data(3, "d1") == [("m1", "d1")]
+    pairer.add_model(4, "m2")
+    assert pairer.add_data(5, "d2") == [("m2", "d2")]
+    assert pairer.add_data(6, "d3") == [("m2", "d3")]  # a map is reused
+    pairer.reset()
+    assert pairer.latest_model is None and pairer.add_data(7, "d4") == []
+
+
+def test_synchronized_pairs_by_stamp_within_tolerance_in_either_arrival_order():
+    ms = 1_000_000
+    pairer: Pairer[str, str] = Pairer("synchronized", tolerance_sec=0.01)
+    assert pairer.add_model(100 * ms, "m100") == []
+    assert pairer.add_data(130 * ms, "d130") == []  # 30 ms: outside the tolerance, waits
+    assert pairer.add_data(104 * ms, "d104") == [("m100", "d104")]
+    assert pairer.add_data(205 * ms, "d205") == []  # data first ...
+    assert pairer.add_model(200 * ms, "m200") == [("m200", "d205")]  # ... model completes it
+    assert pairer.unpaired_data == 1  # d130 was older than the completed pair and is gone
+    assert pairer.add_model(400 * ms, "m400") == []
+    assert pairer.add_data(300 * ms, "d300") == []
+    with pytest.raises(ValueError, match="pairing mode"):
+        Pairer("newest")
+
+
+# --- pipeline ------------------------------------------------------------------------------------
+
+
+def test_pipeline_recovers_the_similarity_and_reports_timings():
+    model_msg, data_msg = scene()
+    pipeline = RegistrationPipeline(PipelineSettings(max_points=2000))
+    outcome = pipeline.process(model_msg, data_msg)
+    assert outcome.ok, outcome.rejection
+    sim = outcome.result.similarity
+    assert sim.scale == pytest.approx(TRUTH.scale, rel=1e-3)
+    np.testing.assert_allclose(sim.rotation, TRUTH.rotation, atol=2e-3)
+    assert (outcome.stamp_ns, outcome.model_frame, outcome.data_frame) == (5_000_000_123, "map", "lidar")
+    assert outcome.data_points.shape == (2000, 3) and not outcome.warm_started
+    assert outcome.timings.convert_seconds > 0 and outcome.timings.register_seconds > 0
+    again = pipeline.process(model_msg, data_msg)
+    assert again.warm_started and again.result.similarity.scale == pytest.approx(TRUTH.scale, rel=1e-3)
+    pipeline.reset()
+    assert pipeline.previous is None
+
+
+def test_pipeline_2d_mode_registers_planar_scans():
+    data = closed_contour(800)
+    truth = Similarity(0.6, axis_rotation(2, 40.0), np.array([1.0, 2.0]))
+    zeros = np.zeros((800, 1))
+    outcome = RegistrationPipeline(PipelineSettings(dims=2)).process(
+        cloud(np.hstack([truth.apply(data), zeros]), "map", 10), cloud(np.hstack([data, zeros]), "scan", 10)
+    )
+    assert outcome.ok, outcome.rejection
+    assert outcome.result.similarity.scale == pytest.approx(0.6, rel=1e-3)
+
+
+def test_pipeline_rejects_bad_input_with_reasons_and_recovers():
+    model_msg, data_msg = scene(500)
+    pipeline = RegistrationPipeline(PipelineSettings(pairing="synchronized"))
+    nan_cloud = cloud(np.full((50, 3), np.nan), "lidar", 1)
+    line = cloud(np.outer(np.arange(100.0), [1.0, 2.0, 3.0]), "lidar", 1)
+    assert pipeline.process(model_msg, nan_cloud).rejected_input == "data"
+    assert pipeline.process(nan_cloud, data_msg).rejected_input == "model"
+    degenerate = pipeline.process(model_msg, line)
+    assert degenerate.rejected_input == "pair" and "collinear" in degenerate.rejection
+    assert pipeline.process(model_msg, data_msg).ok
+    moved = pipeline.process(model_msg, cloud(bumpy_surface(500), "other_lidar", 2))
+    assert not moved.ok and "frame mismatch" in moved.rejection
+    assert pipeline.process(model_msg, data_msg).ok
+
+
+def test_settings_validate_through_the_core():
+    with pytest.raises(ValueError, match="overlap"):
+        PipelineSettings(overlap=1.5)
+    with pytest.raises(ValueError, match="dims"):
+        PipelineSettings(dims=4)
+    with pytest.raises(ValueError):
+        PipelineSettings().updated(method="ransac")
+    config = PipelineSettings(max_distance=0.0).registration_config()
+    assert config.max_distance is None
+
+
+# --- outputs -------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("flavour", [rclpy_message_types, rosbags_message_types])
+def test_outputs_carry_data_stamp_frames_and_the_similarity(flavour):
+    types = flavour()
+    model_msg, data_msg = scene(1500, types=types)
+    outcome = RegistrationPipeline().process(model_msg, data_msg)
+    messages = build_outputs(outcome, types, tuple(OUTPUT_TOPICS))
+    transform = messages["transform"]
+    assert (transform.header.stamp.sec, transform.header.stamp.nanosec) == (5, 123)
+    assert (transform.header.frame_id, transform.child_frame_id) == ("map", "lidar")
+    q = transform.transform.rotation
+    sim = outcome.result.similarity
+    rebuilt = Similarity.from_quaternion(
+        messages["scale"].data,
+        [q.x, q.y, q.z, q.w],
+        [
+            transform.transform.translation.x,
+            transform.transform.translation.y,
+            transform.transform.translation.z,
+        ],
+    )
+    np.testing.assert_allclose(rebuilt.matrix(), sim.matrix(), atol=1e-9)
+    matrix = messages["similarity"]
+    assert [(d.label, d.size, d.stride) for d in matrix.layout.dim] == [("rows", 4, 16), ("cols", 4, 4)]
+    np.testing.assert_allclose(np.asarray(matrix.data).reshape(4, 4), sim.matrix())
+    assert messages["rms"].data == pytest.approx(outcome.result.rms)
+    aligned = messages["aligned"]
+    assert aligned.header.frame_id == "map" and [f.name for f in aligned.fields] == [
+        "x",
+        "y",
+        "z",
+        "intensity",
+    ]
+    np.testing.assert_allclose(
+        np.frombuffer(aligned.data, np.float32).reshape(-1, 4)[:, :3],
+        TRUTH.apply(bumpy_surface(1500, seed=3)),
+        atol=1e-3,
+    )
+
+
+def test_rosbags_outputs_serialize_with_the_jazzy_typestore():
+    from rosbags.typesys import Stores, get_typestore
+
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    types = rosbags_message_types(typestore)
+    model_msg, data_msg = scene(1000, types=types)
+    outcome = RegistrationPipeline().process(model_msg, data_msg)
+    for topic, message in build_outputs(outcome, types, tuple(OUTPUT_TOPICS)).items():
+        raw = typestore.serialize_cdr(message, OUTPUT_TOPICS[topic])
+        assert typestore.deserialize_cdr(raw, OUTPUT_TOPICS[topic]).__msgtype__ == OUTPUT_TOPICS[topic]
+
+
+def test_rejected_outcome_has_no_outputs():
+    outcome = RegistrationPipeline().process(*scene(100)[:1], cloud(np.full((5, 3), np.nan), "lidar", 1))
+    with pytest.raises(ValueError, match="no outputs"):
+        build_outputs(outcome, rosbags_message_types())
+
+
+def test_2d_outputs_are_a_rotation_about_z_and_a_3x3_matrix():
+    types = rosbags_message_types()
+    data = closed_contour(600)
+    truth = Similarity(2.0, axis_rotation(2, 30.0), np.array([1.0, -1.0]))
+    zeros = np.zeros((600, 1))
+    outcome = RegistrationPipeline(PipelineSettings(dims=2)).process(
+        cloud(np.hstack([truth.apply(data), zeros]), "map", 10),
+        cloud(np.hstack([data, zeros + 5.0]), "scan", 20),
+    )
+    messages = build_outputs(outcome, types, tuple(OUTPUT_TOPICS))
+    q = messages["transform"].transform.rotation
+    assert (q.x, q.y) == (0.0, 0.0) and np.degrees(2 * np.arctan2(q.z, q.w)) == pytest.approx(30.0, abs=0.05)
+    assert messages["transform"].transform.translation.z == 0.0
+    matrix = messages["similarity"]
+    assert [(d.size, d.stride) for d in matrix.layout.dim] == [(3, 9), (3, 3)]
+    np.testing.assert_allclose(matrix.data.reshape(3, 3), truth.matrix(), atol=2e-3)
+    aligned = np.frombuffer(messages["aligned"].data, np.float32).reshape(-1, 3)
+    np.testing.assert_allclose(aligned[:, :2], truth.apply(data), atol=1e-2)
+    assert np.all(aligned[:, 2] == 5.0)  # 2-D mode leaves z alone

@@ -1,0 +1,40 @@
+"""Where the real data lives and how a test that needs it skips; random and axis rotations."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+# ../shared/data beside the repository, or FRISICP_DATA (the variable frisicp bench reads too).
+SHARED_DATA = Path(os.environ.get("FRISICP_DATA") or Path(__file__).resolve().parents[3] / "shared" / "data")
+
+
+def shared_file(relative: str) -> Path:
+    """Path of a file in ../shared/data, or a skip saying why the test cannot run."""
+    path = SHARED_DATA / relative
+    if not path.exists():
+        pytest.skip(f"real data {path} is absent (../shared is only beside the repo in CI and dev checkouts)")
+    return path
+
+
+def random_rotation(dim: int, rng: np.random.Generator) -> np.ndarray:
+    """A uniformly random proper rotation (QR of a Gaussian matrix, signs fixed)."""
+    q, r = np.linalg.qr(rng.normal(size=(dim, dim)))
+    q = q * np.sign(np.diag(r))
+    if np.linalg.det(q) < 0:
+        q[:, 0] = -q[:, 0]
+    return q
+
+
+def axis_rotation(dim: int, degrees: float, axis: tuple[float, ...] = (0.3, 1.0, 0.2)) -> np.ndarray:
+    """A rotation by ``degrees``: in 2-D about the origin, in 3-D about ``axis``."""
+    angle = np.deg2rad(degrees)
+    c, s = np.cos(angle), np.sin(angle)
+    if dim == 2:
+        return np.array([[c, -s], [s, c]])
+    k = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    skew = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+    return np.eye(3) + s * skew + (1 - c) * skew @ skew
