@@ -81,6 +81,7 @@ def run(bag: Path, jobs: int, workdir: Path, env_extra: dict[str, str]) -> dict[
         DATA_TOPIC,
         "--max-points",
         "0",
+        "--no-warm-start",  # independent pairs: what --jobs 2 needs, and the same work for --jobs 1
         "--jobs",
         str(jobs),
         "--out",

@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from frisicp_core import Similarity
-from frisicp_core.io import read_points
+from frisicp_core.io import CloudFileError, read_points, read_scan_pose
 from frisicp_core.similarity import FloatArray
 
 from .contours import outer_contour
@@ -60,16 +60,9 @@ def bunny_points(data_dir: Path, name: str) -> FloatArray:
 
 
 def scan_pose(data_dir: Path, name: str) -> Similarity:
-    """Pose of a scan in the common frame, in millimetres, from ``bun.conf``.
-
-    ``bmesh FILE tx ty tz qi qj qk qw`` maps a scan point p to ``R(q)^T p + t`` (the transpose
-    is the data README's checked convention).
-    """
-    conf = require(data_dir / "bunny" / "bun.conf")
-    for line in conf.read_text().splitlines():
-        fields = line.split()
-        if fields[:2] == ["bmesh", name]:
-            values = np.array(fields[2:9], dtype=np.float64)
-            rotation = Similarity.from_quaternion(1.0, values[3:7], np.zeros(3)).rotation
-            return Similarity(1.0, rotation.T, values[:3] * MILLIMETRES_PER_METRE)
-    raise DataMissingError(f"{conf} has no 'bmesh {name}' line")
+    """Pose of a scan in the common frame, in millimetres, from ``bun.conf``."""
+    try:
+        pose = read_scan_pose(require(data_dir / "bunny" / "bun.conf"), name)
+    except CloudFileError as err:
+        raise DataMissingError(str(err)) from None
+    return Similarity(1.0, pose.rotation, pose.translation * MILLIMETRES_PER_METRE)

@@ -11,7 +11,7 @@ from .registration import register
 from .result import IterationRecord, LevelReport, RegistrationResult
 from .sampling import downsample
 from .shapes import bumpy_surface, closed_contour
-from .similarity import Similarity, rotation_angle
+from .similarity import Similarity, axis_angle_rotation, rotation_angle
 
 __all__ = [
     "ConvergenceCriteria",
@@ -24,6 +24,7 @@ __all__ = [
     "RegistrationResult",
     "Similarity",
     "as_point_set",
+    "axis_angle_rotation",
     "bumpy_surface",
     "closed_contour",
     "downsample",

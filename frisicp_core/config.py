@@ -5,6 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from enum import Enum
 
+from .kdtree import BACKENDS
 from .similarity import Similarity
 
 
@@ -98,7 +99,7 @@ class RegistrationConfig:
             self.max_distance is None or self.max_distance > 0,
             f"max_distance must be positive or None, got {self.max_distance}",
         )
-        _require(self.backend in ("auto", "pykdtree", "scipy"), f"unknown backend {self.backend!r}")
+        _require(self.backend in BACKENDS, f"unknown backend {self.backend!r}")
         _require(self.initial is None or isinstance(self.initial, Similarity), "initial must be a Similarity")
 
     @classmethod

@@ -1,7 +1,8 @@
-"""Point cloud files for the CLI, read as (N, m) float64 coordinates.
+"""Point cloud files, read as (N, m) float64 coordinates, and scan poses of ``.conf`` files.
 
 PLY through plyfile (ASCII and binary), PCD through pypcd4 (ascii, binary and
 binary_compressed), XYZ/CSV/TXT through numpy (an optional header line), NPY through numpy.
+The file libraries are imported when a file of theirs is read.
 """
 
 from __future__ import annotations
@@ -11,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from frisicp_core.similarity import FloatArray
+from frisicp_core.similarity import FloatArray, Similarity
 
 
 class CloudFileError(ValueError):
@@ -38,6 +39,22 @@ def read_points(path: str | Path) -> FloatArray:
     except Exception as err:  # noqa: BLE001 - any parser failure becomes one clear message
         raise CloudFileError(f"{file}: cannot read it as {suffix[1:].upper()} ({err})") from None
     raise CloudFileError(f"{file}: unknown extension {suffix!r} (use .ply, .pcd, .xyz, .csv, .txt or .npy)")
+
+
+def read_scan_pose(conf: str | Path, name: str) -> Similarity:
+    """Pose of scan ``name`` in the common frame, from a Stanford-style ``.conf`` file.
+
+    A line ``bmesh NAME tx ty tz qi qj qk qw`` maps a scan point p to ``R(q)^T p + t``
+    (the transpose is the convention the bunny data's README checks). Units are the file's.
+    """
+    file = Path(conf)
+    for line in file.read_text().splitlines():
+        fields = line.split()
+        if fields[:2] == ["bmesh", name]:
+            values = np.array(fields[2:9], dtype=np.float64)
+            rotation = Similarity.from_quaternion(1.0, values[3:7], np.zeros(3)).rotation
+            return Similarity(1.0, rotation.T, values[:3])
+    raise CloudFileError(f"{file} has no 'bmesh {name}' line")
 
 
 def _as_points(array: np.ndarray, file: Path) -> FloatArray:

@@ -17,12 +17,16 @@ except ImportError:  # pragma: no cover
 
 from scipy.spatial import cKDTree
 
+# The KD-tree libraries a configuration can ask for ("auto": pykdtree when installed, else scipy).
+# Every list of backends (options, parameter descriptors, CLI choices) is derived from this one.
+BACKENDS: tuple[str, ...] = ("auto", "pykdtree", "scipy")
+
 
 class NearestNeighbors:
     """A KD-tree over fixed points; ``query`` returns (squared distances, indices)."""
 
     def __init__(self, points: FloatArray, backend: str = "auto") -> None:
-        if backend not in ("auto", "pykdtree", "scipy"):
+        if backend not in BACKENDS:
             raise ValueError(f"unknown nearest-neighbour backend {backend!r}")
         if backend == "pykdtree" and _PyKDTree is None:
             raise ValueError("backend 'pykdtree' requested but pykdtree is not installed")

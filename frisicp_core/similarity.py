@@ -124,6 +124,15 @@ class Similarity:
         return cls(scale, quaternion_to_rotation(quaternion), translation)
 
 
+def axis_angle_rotation(axis: ArrayLike, angle: float) -> FloatArray:
+    """The 3-D rotation by ``angle`` radians about ``axis`` (any length; Rodrigues' formula)."""
+    k = np.asarray(axis, dtype=np.float64)
+    k = k / np.linalg.norm(k)
+    skew = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    rotation: FloatArray = np.eye(3) + np.sin(angle) * skew + (1.0 - np.cos(angle)) * (skew @ skew)
+    return rotation
+
+
 def rotation_angle(rotation: ArrayLike) -> float:
     """Geodesic angle (radians) of a rotation matrix in any dimension.
 

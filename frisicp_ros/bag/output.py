@@ -19,9 +19,8 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from frisicp_ros.bag.pairs import BagPair
-from frisicp_ros.cli.register import result_summary
-from frisicp_ros.stream.outputs import OUTPUT_TOPICS, MessageTypes, rosbags_message_types
-from frisicp_ros.stream.pipeline import PairOutcome
+from frisicp_ros.stream.outputs import OUTPUT_TOPICS, MessageTypes, result_summary, rosbags_message_types
+from frisicp_ros.stream.pipeline import PairOutcome, Rejected
 
 
 class OutputError(Exception):
@@ -37,11 +36,11 @@ def pair_record(pair: BagPair, outcome: PairOutcome) -> dict[str, object]:
         "model_stamp_ns": pair.model.bag_ns,
         "model_frame": outcome.model_frame,
         "data_frame": outcome.data_frame,
-        "ok": outcome.result is not None,
+        "ok": not isinstance(outcome, Rejected),
     }
-    if outcome.result is None:
-        record["rejection"] = outcome.rejection
-        record["rejected_input"] = outcome.rejected_input
+    if isinstance(outcome, Rejected):
+        record["rejection"] = outcome.reason
+        record["rejected_input"] = outcome.input
         return record
     record.update(result_summary(outcome.result))
     record["iterations_per_level"] = list(outcome.result.iterations)

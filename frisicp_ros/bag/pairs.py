@@ -18,6 +18,7 @@ import numpy as np
 from frisicp_ros.bag.reader import BagError, read_messages
 from frisicp_ros.stream.pairing import Pairer
 from frisicp_ros.stream.pointcloud2 import CloudParts, field_specs
+from frisicp_ros.stream.settings import PipelineSettings
 
 
 @dataclass(frozen=True)
@@ -72,6 +73,14 @@ class BagPair:
     model: StampedCloud
     data: StampedCloud
 
+    @property
+    def model_cloud(self) -> PlainCloud:
+        return self.model.cloud
+
+    @property
+    def data_cloud(self) -> PlainCloud:
+        return self.data.cloud
+
 
 @dataclass
 class PairReading:
@@ -84,6 +93,14 @@ class PairReading:
     stopped: str | None = None
     data_clouds: int = 0  # data messages read so far
     model_clouds: int = 0
+
+    @classmethod
+    def paired_as(
+        cls, settings: PipelineSettings, reader: Any, model_topic: str, data_topic: str
+    ) -> PairReading:
+        """The pairs of two topics, paired by ``settings.pairing`` as the node pairs them."""
+        pairer: Pairer[StampedCloud, StampedCloud] = Pairer(settings.pairing, settings.sync_tolerance)
+        return cls(reader, model_topic, data_topic, pairer)
 
     def __iter__(self) -> Iterator[BagPair]:
         index = 0

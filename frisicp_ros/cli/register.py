@@ -7,12 +7,15 @@ import json
 
 import numpy as np
 
-from frisicp_core import Initialization, Method, RegistrationConfig, RegistrationResult, register
+from frisicp_core import RegistrationConfig, register
 from frisicp_core.io import CloudFileError, read_points
 from frisicp_ros.cli.errors import CommandError
+from frisicp_ros.cli.options import add_options, flag_of, given_values
+from frisicp_ros.stream.outputs import result_summary
+from frisicp_ros.stream.settings import Surface, Value, algorithm_values, registration_config
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> None:
+def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
     parser = subparsers.add_parser(
         "register",
         help="register DATA onto MODEL (files: .ply .pcd .xyz .csv .txt .npy)",
@@ -20,58 +23,52 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     )
     parser.add_argument("data", help="point cloud to move")
     parser.add_argument("model", help="point cloud that stays fixed")
-    parser.add_argument("--method", choices=[m.value for m in Method], default=Method.FRISICP.value)
-    parser.add_argument(
-        "--overlap",
-        type=float,
-        default=1.0,
-        help="fraction of each cloud expected to have a counterpart (trimming); 1 = all",
+    presets = parser.add_mutually_exclusive_group()
+    presets.add_argument(
+        "--robust",
+        action="store_true",
+        help="preset for partial overlap (RegistrationConfig.robust(): 80%% trimming)",
     )
-    parser.add_argument("--robust", action="store_true", help="preset for partial overlap: --overlap 0.8")
-    parser.add_argument(
-        "--init",
-        choices=[i.value for i in Initialization],
-        default=Initialization.PRINCIPAL_AXES.value,
-        help="starting guess",
-    )
-    parser.add_argument(
+    presets.add_argument(
         "--paper",
         action="store_true",
-        help="run the published algorithm exactly (identity start, no trimming)",
-    )
-    parser.add_argument("--levels", type=int, default=3, help="sparse-to-dense levels")
-    parser.add_argument(
-        "--drop-nonfinite", action="store_true", help="drop NaN/Inf points instead of failing"
+        help="run the published algorithm exactly (RegistrationConfig.paper(): identity start, no "
+        "trimming or acceleration, one level for the baselines)",
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    add_options(parser, Surface.REGISTER)
     parser.set_defaults(func=run)
 
 
 def config_from_args(args: argparse.Namespace) -> RegistrationConfig:
-    settings = {"levels": args.levels, "drop_nonfinite": args.drop_nonfinite}
+    """The given options on top of the chosen preset (or the defaults).
+
+    An option the preset sets, given with another value, is an error: a preset is never
+    silently changed, nor an option silently ignored.
+    """
+    given = given_values(args, Surface.REGISTER)
     if args.paper:
-        return RegistrationConfig.paper(args.method, **settings)
-    overlap = 0.8 if args.robust and args.overlap == 1.0 else args.overlap
-    return RegistrationConfig(
-        method=Method(args.method), overlap=overlap, initialization=Initialization(args.init), **settings
-    )
+        preset, base = (
+            "--paper",
+            RegistrationConfig.paper(str(given.get("method", RegistrationConfig().method.value))),
+        )
+    elif args.robust:
+        preset, base = "--robust", RegistrationConfig.robust()
+    else:
+        return registration_config(given)
+    check_preset(preset, base, given)
+    return registration_config(given, base)
 
 
-def result_summary(result: RegistrationResult) -> dict[str, object]:
-    """The result as JSON-ready values (shared by --json and the bag mode)."""
-    sim = result.similarity
-    summary: dict[str, object] = {
-        "scale": sim.scale,
-        "rotation": sim.rotation.tolist(),
-        "translation": sim.translation.tolist(),
-        "rms": result.rms,
-        "iterations": sum(result.iterations),
-        "converged": result.converged,
-        "seconds": result.seconds,
-    }
-    if sim.dim == 3:
-        summary["quaternion_xyzw"] = sim.quaternion().tolist()
-    return summary
+def check_preset(preset: str, base: RegistrationConfig, given: dict[str, Value]) -> None:
+    preset_values = algorithm_values(base, Surface.REGISTER)
+    defaults = algorithm_values(RegistrationConfig(), Surface.REGISTER)
+    for name, value in given.items():
+        if name != "method" and preset_values[name] != defaults[name] and value != preset_values[name]:
+            raise CommandError(
+                f"{flag_of(name, Surface.REGISTER)} {value} conflicts with {preset}, which sets"
+                f" {name} {preset_values[name]}"
+            )
 
 
 def run(args: argparse.Namespace) -> int:

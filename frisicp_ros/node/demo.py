@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from frisicp_core import Similarity, bumpy_surface, rotation_angle
+from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface, rotation_angle
 
 DEFAULT_DOMAIN_ID = 142
 STARTUP_TIMEOUT = 30.0  # s for the node to start and answer the first cloud
@@ -36,11 +36,7 @@ class Estimate:
 
 def truth_at(t: float) -> Similarity:
     """A slowly changing similarity: scale 0.7..1.3, rotation about a wandering axis, a circling shift."""
-    angle = np.deg2rad(25.0 * np.sin(0.4 * t))
-    axis = np.array([np.sin(0.2 * t), 1.0, 0.3])
-    axis /= np.linalg.norm(axis)
-    skew = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    rotation = np.eye(3) + np.sin(angle) * skew + (1 - np.cos(angle)) * skew @ skew
+    rotation = axis_angle_rotation([np.sin(0.2 * t), 1.0, 0.3], np.deg2rad(25.0 * np.sin(0.4 * t)))
     return Similarity(
         1.0 + 0.3 * np.sin(0.5 * t), rotation, np.array([0.5 * np.cos(0.3 * t), 0.5 * np.sin(0.3 * t), 0.2])
     )

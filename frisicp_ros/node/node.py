@@ -18,8 +18,9 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import sys
 import threading
 import time
+from collections.abc import Iterator
 from dataclasses import dataclass
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import rclpy
 import rclpy.logging
@@ -41,8 +42,8 @@ from std_srvs.srv import Trigger
 
 from frisicp_ros.node import parameters
 from frisicp_ros.node.newest_slot import NewestWinsSlot
-from frisicp_ros.node.replay import BagReplay, declare_replay_parameters
 from frisicp_ros.node.status import NodeStatus
+from frisicp_ros.stream.loop import SequentialRegistrar, run_stream
 from frisicp_ros.stream.outputs import (
     ALWAYS_PUBLISHED,
     OUTPUT_TOPICS,
@@ -51,8 +52,12 @@ from frisicp_ros.stream.outputs import (
     rclpy_message_types,
 )
 from frisicp_ros.stream.pairing import Pairer
-from frisicp_ros.stream.pipeline import PairOutcome, PipelineSettings, RegistrationPipeline
+from frisicp_ros.stream.pipeline import PairOutcome, Rejected
 from frisicp_ros.stream.pointcloud2 import stamp_ns
+from frisicp_ros.stream.settings import settings_from
+
+if TYPE_CHECKING:
+    from frisicp_ros.node.replay import BagReplay
 
 NODE_NAME = "frisicp"
 _WARN_THROTTLE_SEC = 2.0
@@ -75,8 +80,8 @@ OUTPUT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 
 @dataclass(frozen=True)
 class PendingPair:
-    model: PointCloud2
-    data: PointCloud2
+    model_cloud: PointCloud2
+    data_cloud: PointCloud2
     received_at: float  # time.monotonic() when the data cloud (or the completing cloud) arrived
 
 
@@ -85,28 +90,31 @@ class RegistrationNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         parameters.declare(self)
         values = parameters.current_values(self)
-        settings = parameters.settings_from(values)  # a bad --params-file value fails here, loudly
+        settings = settings_from(values)  # a bad --params-file value fails here, loudly
         self._types: MessageTypes = rclpy_message_types()
-        self._pipeline = RegistrationPipeline(settings)
+        # The one pipeline; only the thread running the stream loop (the worker, or the bag
+        # replay) calls it. Parameter changes and resets reach it as requests.
+        self._registrar = SequentialRegistrar(settings)
         self._pairer_lock = threading.Lock()
         self._pairer: Pairer[PointCloud2, PointCloud2] = Pairer(settings.pairing, settings.sync_tolerance)
         self._slot: NewestWinsSlot[PendingPair] = NewestWinsSlot()
         self._status = NodeStatus()
-        # Hand-overs to the worker, applied between pairs (a registration cannot be interrupted).
-        self._reset_requested = threading.Event()
-        self._new_settings: PipelineSettings | None = None
 
         self._output_publishers = {
             suffix: self.create_publisher(self._types[type_name], f"~/{suffix}", OUTPUT_QOS)
             for suffix, type_name in OUTPUT_TOPICS.items()
         }
         self._diagnostics_publisher = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        # With the `bag` parameter the clouds come from a bag instead of subscriptions (replay.py).
-        replay = declare_replay_parameters(self)
-        self._replay = (
-            None if replay is None else BagReplay(self, replay, self._pipeline, self.publish_outcome)
-        )
-        if self._replay is None:
+        # With the `bag` parameter the clouds come from a bag instead of subscriptions (replay.py,
+        # imported only then: live use needs no rosbags).
+        self._replay: BagReplay | None = None
+        if values["bag"]:
+            from frisicp_ros.node.replay import BagReplay, replay_options
+
+            self._replay = BagReplay(
+                self, replay_options(self, values), self._registrar, self.publish_outcome
+            )
+        else:
             self.create_subscription(
                 PointCloud2, "model", self._on_model, SUBSCRIPTION_QOS[values["model_qos"]]
             )
@@ -118,9 +126,10 @@ class RegistrationNode(Node):
 
         self._stopping = threading.Event()
         self._worker = threading.Thread(target=self._work, name="frisicp-registration", daemon=True)
-        self._worker.start()
         if self._replay is not None:
             self._replay.start()
+        else:
+            self._worker.start()
         self.get_logger().info(
             f"registering '{self.resolve_topic_name('data')}' onto '{self.resolve_topic_name('model')}'"
             f" ({settings.pairing}, {settings.dims}-D, max_points {settings.max_points or 'unlimited'})"
@@ -149,7 +158,7 @@ class RegistrationNode(Node):
         with self._pairer_lock:
             self._pairer.reset()
         self._slot.clear()
-        self._reset_requested.set()
+        self._registrar.request_reset()
         response.success = True
         response.message = "stored model, pending pair and warm start cleared"
         self.get_logger().info(response.message)
@@ -160,67 +169,63 @@ class RegistrationNode(Node):
     def _validate_parameters(self, changes: list[Parameter]) -> SetParametersResult:
         """Reject a change the core would reject, with its reason; the old value stays."""
         try:
-            parameters.settings_from(parameters.with_changes(self, changes))
+            settings_from(parameters.with_changes(self, changes))
         except ValueError as err:
             return SetParametersResult(successful=False, reason=str(err))
         return SetParametersResult(successful=True)
 
     def _apply_parameters(self, changes: list[Parameter]) -> None:
-        settings = parameters.settings_from(parameters.current_values(self))
+        settings = settings_from(parameters.current_values(self))
         if any(p.name in ("pairing", "sync_tolerance") for p in changes):
             with self._pairer_lock:
                 self._pairer = Pairer(settings.pairing, settings.sync_tolerance)
-        self._new_settings = settings
+        self._registrar.request_settings(settings)
         self.get_logger().info("parameters changed: " + ", ".join(f"{p.name}={p.value!r}" for p in changes))
 
     # --- the worker -----------------------------------------------------------------------------
 
     def _work(self) -> None:
+        """The live stream loop: the newest pending pair, registered and published, until stopped."""
+        try:
+            run_stream(self._pending_pairs(), self._registrar, self._publish_pending)
+        except Exception:
+            if self.context.ok() and not self._stopping.is_set():
+                raise
+            # Shutting down: the publishers went away under the last pair.
+
+    def _pending_pairs(self) -> Iterator[PendingPair]:
         while not self._stopping.is_set():
             pending = self._slot.take(timeout=_WORKER_POLL_SEC)
-            self._apply_handovers()
             if pending is None:
-                continue
-            outcome = self._pipeline.process(pending.model, pending.data)
-            if self._reset_requested.is_set():
-                continue  # reset while registering: the result belongs to the old state
-            try:
-                self.publish_outcome(outcome, pending.received_at)
-            except Exception:
-                if self.context.ok() and not self._stopping.is_set():
-                    raise
-                return
+                self._registrar.apply_requests()  # idle: a reset or new settings take effect now
+            else:
+                yield pending
 
-    def _apply_handovers(self) -> None:
-        settings, self._new_settings = self._new_settings, None
-        if settings is not None:
-            self._pipeline.update_settings(settings)
-        if self._reset_requested.is_set():
-            self._reset_requested.clear()
-            self._pipeline.reset()
+    def _publish_pending(self, pending: PendingPair, outcome: PairOutcome) -> None:
+        self.publish_outcome(outcome, pending.data_cloud, pending.received_at)
 
     # --- outputs --------------------------------------------------------------------------------
 
-    def publish_outcome(self, outcome: PairOutcome, received_at: float | None = None) -> None:
+    def publish_outcome(
+        self, outcome: PairOutcome, data_cloud: PointCloud2, received_at: float | None = None
+    ) -> None:
         """Publish one pair's outputs (or warn about its rejection) and count it.
 
-        The single publishing path: the worker calls it, and so can a bag replay loop
-        (``received_at`` None: no latency is recorded).
+        The single publishing path: the live stream loop calls it, and so does the bag replay
+        (``received_at`` None: no latency is recorded). Runs in the stream loop's thread.
         """
         started = time.perf_counter()
-        if not outcome.ok:
-            self.get_logger().warning(
-                f"skipped: {outcome.rejection}", throttle_duration_sec=_WARN_THROTTLE_SEC
-            )
+        if isinstance(outcome, Rejected):
+            self.get_logger().warning(f"skipped: {outcome.reason}", throttle_duration_sec=_WARN_THROTTLE_SEC)
             self._status.record(outcome, None, 0.0)
             return
-        topics = ALWAYS_PUBLISHED
+        topics: tuple[str, ...] = ALWAYS_PUBLISHED
         if (
-            self._pipeline.settings.publish_aligned
+            self._registrar.settings.publish_aligned
             and self._output_publishers["aligned"].get_subscription_count()
         ):
             topics = (*ALWAYS_PUBLISHED, "aligned")
-        for suffix, message in build_outputs(outcome, self._types, topics).items():
+        for suffix, message in build_outputs(outcome, data_cloud, self._types, topics).items():
             self._output_publishers[suffix].publish(message)
         latency = None if received_at is None else time.monotonic() - received_at
         self._status.record(outcome, latency, time.perf_counter() - started)

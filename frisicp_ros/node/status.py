@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from frisicp_ros.stream.pipeline import PairOutcome
+from frisicp_ros.stream.pipeline import PairOutcome, Registered, Rejected
 
 OK, WARN, ERROR = 0, 1, 2  # diagnostic_msgs/DiagnosticStatus levels
 ERROR_AFTER_REJECTIONS = 3  # consecutive rejected pairs before the status is ERROR
@@ -36,7 +36,7 @@ class NodeStatus:
         self._consecutive_rejections = 0
         self._registered = 0
         self._registered_since_report = 0
-        self._last_outcome: PairOutcome | None = None
+        self._last_registered: Registered | None = None
         self._latency: deque[float] = deque(maxlen=window)
         self._node_seconds: deque[float] = deque(maxlen=window)  # conversion + publication
         self._core_seconds: deque[float] = deque(maxlen=window)
@@ -49,15 +49,15 @@ class NodeStatus:
     def record(self, outcome: PairOutcome, latency: float | None, publish_seconds: float) -> None:
         """One processed pair; ``latency`` from data receipt to publication (None in replay)."""
         with self._lock:
-            if not outcome.ok:
-                self._rejected[outcome.rejected_input or "pair"] += 1
-                self._last_rejection = outcome.rejection or ""
+            if isinstance(outcome, Rejected):
+                self._rejected[outcome.input] += 1
+                self._last_rejection = outcome.reason
                 self._consecutive_rejections += 1
                 return
             self._consecutive_rejections = 0
             self._registered += 1
             self._registered_since_report += 1
-            self._last_outcome = outcome
+            self._last_registered = outcome
             if latency is not None:
                 self._latency.append(latency)
             self._node_seconds.append(outcome.timings.convert_seconds + publish_seconds)
@@ -106,8 +106,8 @@ class NodeStatus:
         return values
 
     def _result_values(self) -> dict[str, str]:
-        outcome = self._last_outcome
-        if outcome is None or outcome.result is None:
+        outcome = self._last_registered
+        if outcome is None:
             return {}
         result = outcome.result
         return {
@@ -124,8 +124,8 @@ class NodeStatus:
             return ERROR, f"last {self._consecutive_rejections} pairs rejected: {self._last_rejection}"
         if self._consecutive_rejections:
             return WARN, f"last pair rejected: {self._last_rejection}"
-        if self._last_outcome is None:
+        if self._last_registered is None:
             return WARN, "waiting for clouds" if has_model else "waiting for a model cloud"
-        if not self._last_outcome.result.converged:
+        if not self._last_registered.result.converged:
             return WARN, "last registration did not converge"
         return OK, "registering"

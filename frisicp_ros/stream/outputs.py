@@ -1,4 +1,5 @@
-"""The output messages of one PairOutcome, for rclpy (the node) or rosbags (the bag writer).
+"""The outputs of a registered pair: messages for rclpy (the node) or rosbags (the result bag),
+and the JSON-ready summary of a result (``frisicp register --json``, the bag mode's JSONL).
 
 Both flavours are built by the same code from a :class:`MessageTypes` namespace: every message
 is constructed with all its fields as keywords, which rclpy classes accept and rosbags
@@ -26,8 +27,8 @@ from typing import Any
 
 import numpy as np
 
-from frisicp_core import Similarity
-from frisicp_ros.stream.pipeline import PairOutcome
+from frisicp_core import RegistrationResult, Similarity
+from frisicp_ros.stream.pipeline import Registered
 from frisicp_ros.stream.pointcloud2 import CloudParts, aligned_cloud
 
 OUTPUT_TOPICS: dict[str, str] = {
@@ -167,17 +168,18 @@ def float64(value: float, types: MessageTypes) -> Any:
 
 
 def build_outputs(
-    outcome: PairOutcome,
+    outcome: Registered,
+    data_cloud: Any,
     types: MessageTypes,
     topics: tuple[str, ...] = ALWAYS_PUBLISHED,
 ) -> dict[str, Any]:
     """Messages for the requested topic suffixes (subset of OUTPUT_TOPICS) of a registered pair.
 
+    ``data_cloud`` is the pair's data message (``aligned`` is a copy of it with new coordinates).
     Every message carries the data cloud's stamp; frames come from the clouds.
-    Raises ValueError for a rejected outcome (there is nothing to publish).
     """
-    if outcome.result is None:
-        raise ValueError(f"rejected pair has no outputs: {outcome.rejection}")
+    if not isinstance(outcome, Registered):  # the type says so; untyped callers hear it too
+        raise ValueError(f"rejected pair has no outputs: {getattr(outcome, 'reason', outcome)}")
     unknown = set(topics) - set(OUTPUT_TOPICS)
     if unknown:
         raise ValueError(f"unknown output topics {sorted(unknown)}; known: {sorted(OUTPUT_TOPICS)}")
@@ -190,10 +192,27 @@ def build_outputs(
         "rms": lambda: float64(outcome.result.rms, types),
         "similarity": lambda: similarity_matrix(similarity, types),
         "aligned": lambda: aligned_cloud(
-            outcome.data_msg,
+            data_cloud,
             similarity,
             outcome.dims,
             lambda parts: types.point_cloud(parts, types.header(outcome.stamp_ns, outcome.model_frame)),
         ),
     }
     return {topic: builders[topic]() for topic in topics}
+
+
+def result_summary(result: RegistrationResult) -> dict[str, object]:
+    """The result as JSON-ready values (``frisicp register --json`` and the bag mode's lines)."""
+    sim = result.similarity
+    summary: dict[str, object] = {
+        "scale": sim.scale,
+        "rotation": sim.rotation.tolist(),
+        "translation": sim.translation.tolist(),
+        "rms": result.rms,
+        "iterations": sum(result.iterations),
+        "converged": result.converged,
+        "seconds": result.seconds,
+    }
+    if sim.dim == 3:
+        summary["quaternion_xyzw"] = sim.quaternion().tolist()
+    return summary

@@ -145,7 +145,16 @@ def test_jobs_2_gives_the_results_of_jobs_1_in_bag_order(capsys, bags, tmp_path)
     for jobs in ("1", "2"):
         target = tmp_path / f"jobs{jobs}.jsonl"
         code, _, err = run_cli(
-            capsys, *bag_args(bags["foxglove-mcap-file"], "--jobs", jobs, "--out", target, "--no-progress")
+            capsys,
+            *bag_args(
+                bags["foxglove-mcap-file"],
+                "--no-warm-start",
+                "--jobs",
+                jobs,
+                "--out",
+                target,
+                "--no-progress",
+            ),
         )
         assert code == 0, err
         outputs[jobs] = [
@@ -240,7 +249,7 @@ def test_bag_mode_never_imports_rclpy(bags, tmp_path):
         "            raise ImportError('no ROS here: ' + name)\n"
         "sys.meta_path.insert(0, NoRos())\n"
         "from frisicp_ros.cli.main import main\n"
-        f"code = main({bag_args(bags['foxglove-mcap-file'], '--out-bag', str(tmp_path / 'o'), '--jobs', '2')!r})\n"
+        f"code = main({bag_args(bags['foxglove-mcap-file'], '--out-bag', str(tmp_path / 'o'), '--no-warm-start', '--jobs', '2')!r})\n"
         "sys.exit(code)\n"
     )
     done = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=90)
@@ -335,6 +344,12 @@ def test_argument_mistakes_are_refused_before_reading(capsys, bags, tmp_path):
     assert_clean_failure(code, err, "must be different topics")
     code, _, err = run_cli(capsys, *bag_args(bag, "--warm-start", "--jobs", "2"))
     assert_clean_failure(code, err, "--warm-start", "--jobs 1")
+    code, _, err = run_cli(capsys, *bag_args(bag, "--jobs", "2"))  # warm start is the default, as in the node
+    assert_clean_failure(code, err, "--no-warm-start")
+    code, _, err = run_cli(capsys, *bag_args(bag, "--sync-tolerance", "0.2"))  # would be ignored
+    assert_clean_failure(code, err, "--sync-tolerance applies only with --pairing synchronized")
+    code, _, err = run_cli(capsys, *bag_args(bag, "--max-points", "-1"))
+    assert_clean_failure(code, err, "max_points must be in [0, ")
     code, _, err = run_cli(capsys, *bag_args(bag, "--jobs", "0"))
     assert_clean_failure(code, err, "--jobs must be >= 1")
     code, _, err = run_cli(capsys, *bag_args(bag, "--overlap", "1.5"))
@@ -435,7 +450,9 @@ def test_ctrl_c_keeps_every_result_and_finishes_the_result_bag(tmp_path, jobs):
     process = subprocess.Popen(
         [
             str(Path(sys.executable).parent / "frisicp"),
-            *bag_args(bag, "--out", str(results), "--out-bag", str(out_bag), "--jobs", jobs),
+            *bag_args(
+                bag, "--out", str(results), "--out-bag", str(out_bag), "--no-warm-start", "--jobs", jobs
+            ),
         ],
         stderr=subprocess.PIPE,
         text=True,

@@ -179,7 +179,10 @@ def test_parameters_validated_at_run_time(ros):
     result = node.set_parameters([Parameter("model_qos", value="reliable")])[0]
     assert not result.successful  # read-only: subscriptions are made at start-up
     assert node.set_parameters([Parameter("overlap", value=0.9)])[0].successful
-    assert wait_until(lambda: node._pipeline.settings.overlap == 0.9 or node._new_settings is not None, 2.0)
+    registrar = node._registrar
+    assert wait_until(
+        lambda: registrar.settings.registration.overlap == 0.9 or registrar.pending_settings is not None, 2.0
+    )
     assert node.set_parameters([Parameter("overlap", value=1.0)])[0].successful
 
 
@@ -190,7 +193,7 @@ def test_reset_service_clears_model_and_warm_start(ros):
     future = probe.reset_client.call_async(Trigger.Request())
     assert wait_until(future.done, TIMEOUT) and future.result().success
     assert node._pairer.latest_model is None
-    assert wait_until(lambda: node._pipeline.previous is None, 2.0)
+    assert wait_until(lambda: node._registrar.previous is None, 2.0)
     probe.clear()
     # Data alone does not register after the reset: the model is gone.
     _, data = scene_messages(stamp_ns=1_700_000_004_000_000_000)

@@ -1,52 +1,88 @@
-"""config/frisicp.yaml, the declared parameters and the pipeline settings agree."""
+"""One settings table: config/frisicp.yaml, the node's parameters, the CLI options and the core agree."""
 
 from __future__ import annotations
 
+from dataclasses import fields
 from pathlib import Path
 
 import pytest
 import yaml
 
+from frisicp_core import ConvergenceCriteria, RegistrationConfig
+from frisicp_core.kdtree import BACKENDS
 from frisicp_ros.node import parameters
-from frisicp_ros.stream.pipeline import PipelineSettings
+from frisicp_ros.stream import settings
+from frisicp_ros.stream.settings import OPTIONS_BY_NAME, PipelineSettings, Surface, settings_from
 
 ROOT = Path(__file__).resolve().parents[2]
 
 
+def test_yaml_file_is_the_one_generated_from_the_table():
+    text = (ROOT / "config" / "frisicp.yaml").read_text()
+    assert text == settings.render_yaml(), "config/frisicp.yaml is stale: run `make config`"
+
+
 def test_yaml_lists_every_parameter_with_its_default():
     loaded = yaml.safe_load((ROOT / "config" / "frisicp.yaml").read_text())["/**"]["ros__parameters"]
-    assert loaded == parameters.defaults()
-    assert set(parameters.SPECS) == set(loaded)
-    assert set(PipelineSettings.names()) <= set(loaded)
+    assert loaded == settings.defaults(Surface.NODE)
+    assert set(parameters.NAMES) == set(loaded)
+    stream_names = {f.name for f in fields(PipelineSettings)} - {"registration"}
+    assert stream_names <= set(loaded)
+    for name in ("bag", "bag_rate", "bag_delay", "bag_wait_for_subscribers", "bag_exit_on_end"):
+        assert name in loaded  # the replay's parameters are in the table like every other
 
 
 def test_settings_from_rejects_with_the_reason_and_accepts_valid_values():
-    values = parameters.defaults()
-    assert parameters.settings_from(values) == PipelineSettings()
+    values = settings.defaults(Surface.NODE)
+    assert settings_from(values) == PipelineSettings.create()
     with pytest.raises(ValueError, match="model_qos must be one of"):
-        parameters.settings_from({**values, "model_qos": "latched"})
+        settings_from({**values, "model_qos": "latched"})
     with pytest.raises(ValueError, match="coarsest_points"):
-        parameters.settings_from({**values, "coarsest_points": 5})
-    assert parameters.settings_from({**values, "dims": 2, "pairing": "synchronized"}).dims == 2
+        settings_from({**values, "coarsest_points": 5})
+    with pytest.raises(ValueError, match="unknown option"):
+        settings_from({**values, "coarse_points": 500})
+    assert settings_from({**values, "dims": 2, "pairing": "synchronized"}).dims == 2
 
 
 def test_descriptors_carry_descriptions_and_ranges():
-    overlap = parameters.descriptor("overlap", parameters.SPECS["overlap"])
+    overlap = parameters.descriptor(OPTIONS_BY_NAME["overlap"])
     assert overlap.description and overlap.floating_point_range[0].to_value == 1.0
-    levels = parameters.descriptor("levels", parameters.SPECS["levels"])
+    levels = parameters.descriptor(OPTIONS_BY_NAME["levels"])
     assert levels.integer_range[0].from_value == 1
-    assert "frisicp" in parameters.descriptor("method", parameters.SPECS["method"]).additional_constraints
-    assert parameters.descriptor("model_qos", parameters.SPECS["model_qos"]).read_only
+    assert "frisicp" in parameters.descriptor(OPTIONS_BY_NAME["method"]).additional_constraints
+    assert parameters.descriptor(OPTIONS_BY_NAME["model_qos"]).read_only
+    assert parameters.descriptor(OPTIONS_BY_NAME["bag_rate"]).read_only
 
 
-def test_every_core_option_is_a_parameter():
-    from dataclasses import fields as dataclass_fields
+def test_every_core_option_is_an_option_with_the_core_default():
+    core = {f.name for f in fields(RegistrationConfig)} - set(settings.NOT_OPTIONS) - {"criteria"}
+    core |= {f"criteria.{f.name}" for f in fields(ConvergenceCriteria)}
+    backed = {o.core for o in settings.OPTIONS if o.core}
+    assert core == backed, sorted(core ^ backed)
+    assert PipelineSettings.create().registration == RegistrationConfig()  # same defaults as the core
+    assert OPTIONS_BY_NAME["backend"].choices == BACKENDS  # the core's list, not a copy
 
-    from frisicp_core import ConvergenceCriteria, RegistrationConfig
-    from frisicp_ros.stream.pipeline import NOT_PARAMETERS
 
-    core = {f.name for f in dataclass_fields(RegistrationConfig)} - set(NOT_PARAMETERS)
-    core |= {f.name for f in dataclass_fields(ConvergenceCriteria)}
-    assert core <= set(parameters.SPECS), sorted(core - set(parameters.SPECS))
-    config = PipelineSettings().registration_config()
-    assert config == RegistrationConfig(drop_nonfinite=False)  # same defaults as the core
+def test_zero_stands_for_the_cores_none_both_ways():
+    config = settings.registration_config({"max_distance": 0.0})
+    assert config.max_distance is None
+    assert settings.algorithm_values(config)["max_distance"] == 0.0
+    assert settings.registration_config({"max_distance": 3.0}).max_distance == 3.0
+
+
+def test_settings_round_trip_through_their_values():
+    custom = PipelineSettings.create(dims=2, overlap=0.7, max_iterations=5, initialization="moments")
+    assert PipelineSettings.create(**custom.values()) == custom
+    assert custom.registration.criteria.max_iterations == 5
+
+
+def test_every_option_reaches_the_surfaces_it_names():
+    from frisicp_ros.cli.main import build_parser
+
+    subcommands = build_parser()._subparsers._group_actions[0].choices  # type: ignore[union-attr]
+    for surface, command in ((Surface.BAG, "bag"), (Surface.REGISTER, "register")):
+        dests = {action.dest for action in subcommands[command]._actions}
+        for option in settings.OPTIONS:
+            assert (option.name in dests) == bool(surface & option.surfaces), (command, option.name)
+    for option in settings.OPTIONS:
+        assert (option.name in parameters.NAMES) == bool(Surface.NODE & option.surfaces), option.name

@@ -14,8 +14,9 @@ from frisicp_ros.stream.outputs import (
     rosbags_message_types,
 )
 from frisicp_ros.stream.pairing import Pairer
-from frisicp_ros.stream.pipeline import PipelineSettings, RegistrationPipeline
+from frisicp_ros.stream.pipeline import Registered, RegistrationPipeline, Rejected
 from frisicp_ros.stream.pointcloud2 import points_to_parts
+from frisicp_ros.stream.settings import PipelineSettings
 
 TRUTH = Similarity(1.8, axis_rotation(3, 25.0), np.array([0.4, -0.2, 1.0]))
 
@@ -69,17 +70,21 @@ def test_synchronized_pairs_by_stamp_within_tolerance_in_either_arrival_order():
 
 def test_pipeline_recovers_the_similarity_and_reports_timings():
     model_msg, data_msg = scene()
-    pipeline = RegistrationPipeline(PipelineSettings(max_points=2000))
+    pipeline = RegistrationPipeline(PipelineSettings.create(max_points=2000))
     outcome = pipeline.process(model_msg, data_msg)
-    assert outcome.ok, outcome.rejection
+    assert isinstance(outcome, Registered), outcome
     sim = outcome.result.similarity
     assert sim.scale == pytest.approx(TRUTH.scale, rel=1e-3)
     np.testing.assert_allclose(sim.rotation, TRUTH.rotation, atol=2e-3)
     assert (outcome.stamp_ns, outcome.model_frame, outcome.data_frame) == (5_000_000_123, "map", "lidar")
-    assert outcome.data_points.shape == (2000, 3) and not outcome.warm_started
+    assert outcome.data_points == 2000 and not outcome.warm_started
     assert outcome.timings.convert_seconds > 0 and outcome.timings.register_seconds > 0
     again = pipeline.process(model_msg, data_msg)
-    assert again.warm_started and again.result.similarity.scale == pytest.approx(TRUTH.scale, rel=1e-3)
+    assert (
+        isinstance(again, Registered)
+        and again.warm_started
+        and again.result.similarity.scale == pytest.approx(TRUTH.scale, rel=1e-3)
+    )
     pipeline.reset()
     assert pipeline.previous is None
 
@@ -88,37 +93,45 @@ def test_pipeline_2d_mode_registers_planar_scans():
     data = closed_contour(800)
     truth = Similarity(0.6, axis_rotation(2, 40.0), np.array([1.0, 2.0]))
     zeros = np.zeros((800, 1))
-    outcome = RegistrationPipeline(PipelineSettings(dims=2)).process(
+    outcome = RegistrationPipeline(PipelineSettings.create(dims=2)).process(
         cloud(np.hstack([truth.apply(data), zeros]), "map", 10), cloud(np.hstack([data, zeros]), "scan", 10)
     )
-    assert outcome.ok, outcome.rejection
+    assert isinstance(outcome, Registered), outcome
     assert outcome.result.similarity.scale == pytest.approx(0.6, rel=1e-3)
 
 
 def test_pipeline_rejects_bad_input_with_reasons_and_recovers():
     model_msg, data_msg = scene(500)
-    pipeline = RegistrationPipeline(PipelineSettings(pairing="synchronized"))
+    pipeline = RegistrationPipeline(PipelineSettings.create(pairing="synchronized"))
     nan_cloud = cloud(np.full((50, 3), np.nan), "lidar", 1)
     line = cloud(np.outer(np.arange(100.0), [1.0, 2.0, 3.0]), "lidar", 1)
-    assert pipeline.process(model_msg, nan_cloud).rejected_input == "data"
-    assert pipeline.process(nan_cloud, data_msg).rejected_input == "model"
+    assert rejected_input(pipeline.process(model_msg, nan_cloud)) == "data"
+    assert rejected_input(pipeline.process(nan_cloud, data_msg)) == "model"
     degenerate = pipeline.process(model_msg, line)
-    assert degenerate.rejected_input == "pair" and "collinear" in degenerate.rejection
-    assert pipeline.process(model_msg, data_msg).ok
+    assert isinstance(degenerate, Rejected)
+    assert degenerate.input == "pair" and "collinear" in degenerate.reason
+    assert isinstance(pipeline.process(model_msg, data_msg), Registered)
     moved = pipeline.process(model_msg, cloud(bumpy_surface(500), "other_lidar", 2))
-    assert not moved.ok and "frame mismatch" in moved.rejection
-    assert pipeline.process(model_msg, data_msg).ok
+    assert isinstance(moved, Rejected) and "frame mismatch" in moved.reason
+    assert isinstance(pipeline.process(model_msg, data_msg), Registered)
 
 
-def test_settings_validate_through_the_core():
+def rejected_input(outcome: object) -> str:
+    assert isinstance(outcome, Rejected), outcome
+    return outcome.input
+
+
+def test_settings_validate_through_the_table_and_the_core():
     with pytest.raises(ValueError, match="overlap"):
-        PipelineSettings(overlap=1.5)
+        PipelineSettings.create(overlap=1.5)
     with pytest.raises(ValueError, match="dims"):
-        PipelineSettings(dims=4)
+        PipelineSettings.create(dims=4)
     with pytest.raises(ValueError):
-        PipelineSettings().updated(method="ransac")
-    config = PipelineSettings(max_distance=0.0).registration_config()
-    assert config.max_distance is None
+        PipelineSettings.create().updated(method="ransac")
+    with pytest.raises(ValueError, match=r"relative_motion must be in \[0, 1\)"):  # the core's own check
+        PipelineSettings.create(relative_motion=1.0)
+    config = PipelineSettings.create(max_distance=0.0).registration
+    assert config.max_distance is None  # 0 stands for the core's None
 
 
 # --- outputs -------------------------------------------------------------------------------------
@@ -129,7 +142,7 @@ def test_outputs_carry_data_stamp_frames_and_the_similarity(flavour):
     types = flavour()
     model_msg, data_msg = scene(1500, types=types)
     outcome = RegistrationPipeline().process(model_msg, data_msg)
-    messages = build_outputs(outcome, types, tuple(OUTPUT_TOPICS))
+    messages = build_outputs(outcome, data_msg, types, tuple(OUTPUT_TOPICS))
     transform = messages["transform"]
     assert (transform.header.stamp.sec, transform.header.stamp.nanosec) == (5, 123)
     assert (transform.header.frame_id, transform.child_frame_id) == ("map", "lidar")
@@ -170,15 +183,16 @@ def test_rosbags_outputs_serialize_with_the_jazzy_typestore():
     types = rosbags_message_types(typestore)
     model_msg, data_msg = scene(1000, types=types)
     outcome = RegistrationPipeline().process(model_msg, data_msg)
-    for topic, message in build_outputs(outcome, types, tuple(OUTPUT_TOPICS)).items():
+    for topic, message in build_outputs(outcome, data_msg, types, tuple(OUTPUT_TOPICS)).items():
         raw = typestore.serialize_cdr(message, OUTPUT_TOPICS[topic])
         assert typestore.deserialize_cdr(raw, OUTPUT_TOPICS[topic]).__msgtype__ == OUTPUT_TOPICS[topic]
 
 
 def test_rejected_outcome_has_no_outputs():
-    outcome = RegistrationPipeline().process(*scene(100)[:1], cloud(np.full((5, 3), np.nan), "lidar", 1))
+    nan_cloud = cloud(np.full((5, 3), np.nan), "lidar", 1)
+    outcome = RegistrationPipeline().process(*scene(100)[:1], nan_cloud)
     with pytest.raises(ValueError, match="no outputs"):
-        build_outputs(outcome, rosbags_message_types())
+        build_outputs(outcome, nan_cloud, rosbags_message_types())  # type: ignore[arg-type]
 
 
 def test_2d_outputs_are_a_rotation_about_z_and_a_3x3_matrix():
@@ -186,11 +200,11 @@ def test_2d_outputs_are_a_rotation_about_z_and_a_3x3_matrix():
     data = closed_contour(600)
     truth = Similarity(2.0, axis_rotation(2, 30.0), np.array([1.0, -1.0]))
     zeros = np.zeros((600, 1))
-    outcome = RegistrationPipeline(PipelineSettings(dims=2)).process(
-        cloud(np.hstack([truth.apply(data), zeros]), "map", 10),
-        cloud(np.hstack([data, zeros + 5.0]), "scan", 20),
+    scan = cloud(np.hstack([data, zeros + 5.0]), "scan", 20)
+    outcome = RegistrationPipeline(PipelineSettings.create(dims=2)).process(
+        cloud(np.hstack([truth.apply(data), zeros]), "map", 10), scan
     )
-    messages = build_outputs(outcome, types, tuple(OUTPUT_TOPICS))
+    messages = build_outputs(outcome, scan, types, tuple(OUTPUT_TOPICS))
     q = messages["transform"].transform.rotation
     assert (q.x, q.y) == (0.0, 0.0) and np.degrees(2 * np.arctan2(q.z, q.w)) == pytest.approx(30.0, abs=0.05)
     assert messages["transform"].transform.translation.z == 0.0

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from frisicp_core import Similarity, bumpy_surface
+from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface
 
 MODEL_TOPIC = "/map_cloud"
 DATA_TOPIC = "/scan_cloud"
@@ -51,11 +51,7 @@ class Scenario:
 
 def truth_for(k: int) -> Similarity:
     """A different, well-separated similarity for every data cloud."""
-    angle = np.deg2rad(10.0 + 7.0 * k)
-    axis = np.array([0.3, 1.0, 0.2 + 0.1 * k])
-    axis /= np.linalg.norm(axis)
-    skew = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    rotation = np.eye(3) + np.sin(angle) * skew + (1 - np.cos(angle)) * skew @ skew
+    rotation = axis_angle_rotation([0.3, 1.0, 0.2 + 0.1 * k], np.deg2rad(10.0 + 7.0 * k))
     return Similarity(0.5 + 0.6 * k, rotation, [0.4 * k - 1.0, 2.0, 0.3 * k])
 
 

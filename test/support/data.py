@@ -8,6 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from frisicp_core import axis_angle_rotation
+
 # ../shared/data beside the repository, or FRISICP_DATA (the variable frisicp bench reads too).
 SHARED_DATA = Path(os.environ.get("FRISICP_DATA") or Path(__file__).resolve().parents[3] / "shared" / "data")
 
@@ -35,6 +37,4 @@ def axis_rotation(dim: int, degrees: float, axis: tuple[float, ...] = (0.3, 1.0,
     c, s = np.cos(angle), np.sin(angle)
     if dim == 2:
         return np.array([[c, -s], [s, c]])
-    k = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
-    skew = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    return np.eye(3) + s * skew + (1 - c) * skew @ skew
+    return axis_angle_rotation(axis, angle)

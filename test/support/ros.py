@@ -8,17 +8,12 @@ from collections.abc import Callable
 
 import numpy as np
 
-from frisicp_core import Similarity, bumpy_surface
+from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface
 from frisicp_ros.stream.outputs import rclpy_message_types
 from frisicp_ros.stream.pointcloud2 import points_to_parts
 
 # Rotation by 20 degrees about a tilted axis; each node test checks the node recovers this.
-_ANGLE = np.deg2rad(20.0)
-_AXIS = np.array([0.3, 1.0, 0.2]) / np.linalg.norm([0.3, 1.0, 0.2])
-_SKEW = np.array([[0, -_AXIS[2], _AXIS[1]], [_AXIS[2], 0, -_AXIS[0]], [-_AXIS[1], _AXIS[0], 0]])
-TRUTH = Similarity(
-    1.5, np.eye(3) + np.sin(_ANGLE) * _SKEW + (1 - np.cos(_ANGLE)) * _SKEW @ _SKEW, np.array([0.5, -1.0, 2.0])
-)
+TRUTH = Similarity(1.5, axis_angle_rotation([0.3, 1.0, 0.2], np.deg2rad(20.0)), np.array([0.5, -1.0, 2.0]))
 
 
 def ros_environment(domain_id: int) -> dict[str, str]:

@@ -1,0 +1,134 @@
+"""The one stream loop (pair -> process -> emit) of the node, its bag replay and ``frisicp bag``.
+
+:func:`run_stream` takes pairs, registers each with a *registrar* and hands the outcome to an
+``emit`` callback, in pair order. Two registrars:
+
+- :class:`SequentialRegistrar` owns one :class:`RegistrationPipeline` (warm start, cached model,
+  frames) and must be called from one thread only. Other threads (parameter callbacks, the reset
+  service) *request* new settings or a reset; the requests are applied by the owning thread
+  between two pairs, as the pipeline's one-thread rule demands. A pair during which a reset was
+  requested is dropped (its result belongs to the old state).
+- :class:`IndependentRegistrar` gives every pair a fresh pipeline: results do not depend on the
+  order or on which process computed them, so ``frisicp bag --jobs N`` can map it over worker
+  processes (it pickles).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable, Iterable, Iterator
+from contextlib import closing
+from dataclasses import dataclass
+from typing import Any, Protocol, TypeVar
+
+from frisicp_core import Similarity
+from frisicp_ros.stream.pipeline import PairOutcome, RegistrationPipeline
+from frisicp_ros.stream.settings import PipelineSettings
+
+
+class CloudPair(Protocol):
+    """A (model, data) pair of PointCloud2-like messages, plus whatever the emitter needs."""
+
+    @property
+    def model_cloud(self) -> Any: ...
+
+    @property
+    def data_cloud(self) -> Any: ...
+
+
+PairT = TypeVar("PairT", bound=CloudPair)
+Registrar = Callable[[PairT], "PairOutcome | None"]
+# Maps a registrar over pairs, yielding (pair, outcome) in pair order: serially in this thread,
+# or over worker processes (frisicp_ros.bag.jobs.ordered_map).
+PairMapper = Callable[[Registrar[PairT], Iterable[PairT]], Iterator[tuple[PairT, "PairOutcome | None"]]]
+
+
+def serial_map(
+    register: Registrar[PairT], pairs: Iterable[PairT]
+) -> Iterator[tuple[PairT, PairOutcome | None]]:
+    for pair in pairs:
+        yield pair, register(pair)
+
+
+def run_stream(
+    pairs: Iterable[PairT],
+    register: Registrar[PairT],
+    emit: Callable[[PairT, PairOutcome], None],
+    mapper: PairMapper[PairT] = serial_map,
+) -> None:
+    """Register every pair and emit its outcome, in pair order, until ``pairs`` ends.
+
+    ``emit`` runs in the calling thread; an exception in it (or a KeyboardInterrupt) stops the
+    loop and closes the mapper, which cancels work not yet started.
+    """
+    with closing(mapper(register, pairs)) as registered:  # type: ignore[type-var]  # a generator
+        for pair, outcome in registered:
+            if outcome is not None:
+                emit(pair, outcome)
+
+
+class SequentialRegistrar:
+    """One pipeline for a whole stream; see the module docstring for its threading rule."""
+
+    def __init__(self, settings: PipelineSettings) -> None:
+        self._pipeline = RegistrationPipeline(settings)
+        self._lock = threading.Lock()
+        self._requested_settings: PipelineSettings | None = None
+        self._reset_requested = threading.Event()
+
+    @property
+    def settings(self) -> PipelineSettings:
+        """The settings in force for the pair being (or last) registered."""
+        return self._pipeline.settings
+
+    @property
+    def previous(self) -> Similarity | None:
+        """The warm start the next pair would start from (None: cold start)."""
+        return self._pipeline.previous
+
+    @property
+    def pending_settings(self) -> PipelineSettings | None:
+        """Settings requested but not yet applied (applied before the next pair)."""
+        return self._requested_settings
+
+    def request_settings(self, settings: PipelineSettings) -> None:
+        """Any thread: use ``settings`` from the next pair on."""
+        with self._lock:
+            self._requested_settings = settings
+
+    def request_reset(self) -> None:
+        """Any thread: forget warm start, cached model and frames before the next pair; the pair
+        being registered now (if any) is dropped."""
+        self._reset_requested.set()
+
+    def __call__(self, pair: CloudPair) -> PairOutcome | None:
+        self.apply_requests()
+        outcome = self._pipeline.process(pair.model_cloud, pair.data_cloud)
+        if self._reset_requested.is_set():
+            return None  # reset while registering: the result belongs to the old state
+        return outcome
+
+    def apply_requests(self) -> None:
+        """Owning thread only: apply what was requested (done before every pair anyway; an idle
+        loop calls it so a reset takes effect at once)."""
+        with self._lock:
+            settings, self._requested_settings = self._requested_settings, None
+        if settings is not None:
+            self._pipeline.update_settings(settings)
+        if self._reset_requested.is_set():
+            self._reset_requested.clear()
+            self._pipeline.reset()
+
+
+@dataclass(frozen=True)
+class IndependentRegistrar:
+    """A fresh pipeline per pair: no warm start, no state, picklable."""
+
+    settings: PipelineSettings
+
+    def __post_init__(self) -> None:
+        if self.settings.warm_start:
+            raise ValueError("independent pairs cannot be warm-started; use a SequentialRegistrar")
+
+    def __call__(self, pair: CloudPair) -> PairOutcome:
+        return RegistrationPipeline(self.settings).process(pair.model_cloud, pair.data_cloud)

@@ -1,0 +1,550 @@
+"""Every option of ``register_node``, ``frisicp bag`` and ``frisicp register``, defined once.
+
+:data:`OPTIONS` is the table: one :class:`Option` per setting with its name, type, default, range
+or choices, description and the surfaces it appears on. Generated from it:
+
+- the node's parameter declarations and descriptors (``frisicp_ros.node.parameters``);
+- ``config/frisicp.yaml`` (:func:`render_yaml`, written by ``make config``; a test keeps the file
+  equal to it);
+- the command-line options of ``frisicp bag`` and ``frisicp register``
+  (``frisicp_ros.cli.options``).
+
+Algorithm rows name a field of :class:`~frisicp_core.RegistrationConfig` (``core``; dotted for
+``criteria``) and take their type, default and enum choices from ``RegistrationConfig()``, so
+adding or changing a core option is one row here. ROS parameters have no null: a core ``None``
+is written as the type's zero (0, 0.0 or ""), and the row's ``zero_means`` says what that stands
+for ("off", "automatic"). Values are always in that parameter form (bool, int, float, str);
+:func:`settings_from` validates them and builds the typed :class:`PipelineSettings`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import textwrap
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass
+from typing import Any
+
+from frisicp_core import RegistrationConfig
+from frisicp_core.kdtree import BACKENDS
+
+from .pairing import PAIRING_MODES
+
+Value = bool | int | float | str
+
+
+class Surface(enum.Flag):
+    """Where an option can be set."""
+
+    NODE = enum.auto()  # register_node parameters, config/frisicp.yaml
+    BAG = enum.auto()  # frisicp bag
+    REGISTER = enum.auto()  # frisicp register
+
+
+STREAM = Surface.NODE | Surface.BAG  # everything that processes a stream of clouds
+EVERYWHERE = Surface.NODE | Surface.BAG | Surface.REGISTER
+
+
+class Group(str, enum.Enum):
+    """Sections of the YAML file and of ``--help``, in this order."""
+
+    NODE = "node"  # the live node only: subscriptions, diagnostics
+    REPLAY = "bag replay"  # the node reading its clouds from a bag
+    STREAM = "stream"  # pairing and conversion of clouds, node and bag mode
+    ALGORITHM = "algorithm"  # frisicp_core.RegistrationConfig
+
+
+@dataclass(frozen=True)
+class Option:
+    """One row of the table. Build rows with :func:`option` or :func:`core_option`."""
+
+    name: str
+    kind: type  # bool, int, float or str
+    default: Value
+    description: str
+    surfaces: Surface
+    group: Group
+    choices: tuple[str, ...] | None = None
+    bounds: tuple[float, float] | None = None  # inclusive; ints and floats
+    read_only: bool = False  # node: set at start-up only (subscriptions are made once)
+    core: str | None = None  # RegistrationConfig field ("criteria.max_iterations" for nested)
+    zero_means: str | None = None  # what 0 / 0.0 / "" stands for: the core's None
+    flags: tuple[str, ...] = ()  # command-line spellings; default --name-with-dashes
+    needs: tuple[str, Value] | None = None  # CLI: only meaningful with that option at that value
+
+    @property
+    def cli_flags(self) -> tuple[str, ...]:
+        return self.flags or ("--" + self.name.replace("_", "-"),)
+
+    def check(self, value: object) -> Value:
+        """``value`` as this option's type, or ValueError naming the option and the reason."""
+        if self.kind is float and isinstance(value, int) and not isinstance(value, bool):
+            value = float(value)
+        if type(value) is not self.kind:
+            raise ValueError(f"{self.name} must be a {self.kind.__name__}, got {value!r}")
+        if self.choices is not None and value not in self.choices:
+            raise ValueError(f"{self.name} must be one of {', '.join(self.choices)}, got {value!r}")
+        if self.bounds is not None:
+            low, high = self.bounds
+            if not low <= value <= high:  # type: ignore[operator]  # kind is int or float here
+                raise ValueError(f"{self.name} must be in [{_number(low)}, {_number(high)}], got {value!r}")
+        return value  # type: ignore[return-value]  # checked: one of the Value types
+
+    def to_core(self, value: Value) -> object:
+        """The RegistrationConfig value of a parameter value (zero -> None, str -> enum)."""
+        if self.zero_means is not None and value == self.kind():
+            return None
+        field_type = type(_core_default(self.core)) if self.core else None
+        if field_type is not None and issubclass(field_type, enum.Enum):
+            return field_type(value)
+        return value
+
+
+def option(
+    name: str,
+    default: Value,
+    description: str,
+    surfaces: Surface,
+    group: Group,
+    **details: Any,
+) -> Option:
+    """A row whose default is written here (options the core does not have)."""
+    return Option(name, type(default), default, description, surfaces, group, **details)
+
+
+def core_option(
+    name: str,
+    description: str,
+    core: str | None = None,
+    surfaces: Surface = EVERYWHERE,
+    kind: type | None = None,
+    **details: Any,
+) -> Option:
+    """A row backed by a RegistrationConfig field (``core``, default: ``name``).
+
+    Type, default and enum choices come from ``RegistrationConfig()``. A field whose default is
+    None needs ``kind`` and ``zero_means``: the parameter's zero stands for None.
+    """
+    path = core or name
+    default = _core_default(path)
+    choices = details.pop("choices", None)
+    if isinstance(default, enum.Enum):
+        choices = choices or tuple(str(member.value) for member in type(default))
+        default = default.value
+    if default is None:
+        if kind is None or "zero_means" not in details:
+            raise TypeError(f"{name}: the core default is None; give kind= and zero_means=")
+        default = kind()
+    kind = kind or type(default)
+    return Option(
+        name,
+        kind,
+        kind(default),
+        description,
+        surfaces,
+        Group.ALGORITHM,
+        choices=choices,
+        core=path,
+        **details,
+    )
+
+
+def _core_default(path: str | None) -> Any:
+    value: Any = RegistrationConfig()
+    for part in (path or "").split("."):
+        value = getattr(value, part)
+    return value
+
+
+def _number(value: float) -> str:
+    return str(int(value)) if float(value).is_integer() else repr(value)
+
+
+MODEL_QOS_CHOICES = ("sensor_data", "reliable", "transient_local")
+DATA_QOS_CHOICES = ("sensor_data", "reliable")
+
+OPTIONS: tuple[Option, ...] = (
+    # --- the live node -------------------------------------------------------------------------
+    option(
+        "model_qos",
+        "sensor_data",
+        "QoS of the model subscription: sensor_data (best effort, depth 5), reliable (depth 5), or "
+        "transient_local (reliable, transient local, depth 1: a latched map)",
+        Surface.NODE,
+        Group.NODE,
+        choices=MODEL_QOS_CHOICES,
+        read_only=True,
+    ),
+    option(
+        "data_qos",
+        "sensor_data",
+        "QoS of the data subscription: sensor_data or reliable (depth 5)",
+        Surface.NODE,
+        Group.NODE,
+        choices=DATA_QOS_CHOICES,
+        read_only=True,
+    ),
+    option(
+        "diagnostics_period",
+        1.0,
+        "seconds between /diagnostics messages",
+        Surface.NODE,
+        Group.NODE,
+        bounds=(0.1, 60.0),
+        read_only=True,
+    ),
+    # --- the node replaying a bag (frisicp_ros.node.replay) ------------------------------------
+    option(
+        "bag",
+        "",
+        "replay this bag (rosbag2 folder, .db3/.mcap file or ROS 1 .bag) instead of subscribing;"
+        " its topics follow the remappings of model and data; empty = live",
+        Surface.NODE,
+        Group.REPLAY,
+        read_only=True,
+    ),
+    option(
+        "bag_rate",
+        1.0,
+        "replay speed: 1 = the recorded rate, 2 = twice as fast, 0 = as fast as possible",
+        Surface.NODE,
+        Group.REPLAY,
+        bounds=(0.0, 1000.0),
+        read_only=True,
+    ),
+    option(
+        "bag_delay",
+        1.0,
+        "seconds to wait before the first pair, so subscribers can discover the node",
+        Surface.NODE,
+        Group.REPLAY,
+        bounds=(0.0, 3600.0),
+        read_only=True,
+    ),
+    option(
+        "bag_wait_for_subscribers",
+        0,
+        "before that delay, wait until ~/transform has this many subscribers",
+        Surface.NODE,
+        Group.REPLAY,
+        bounds=(0, 1000),
+        read_only=True,
+    ),
+    option(
+        "bag_exit_on_end",
+        True,
+        "shut the node down when the bag is done (after subscribers acknowledged the outputs);"
+        " false = stay up, idle",
+        Surface.NODE,
+        Group.REPLAY,
+        read_only=True,
+    ),
+    # --- the stream: node and bag mode ---------------------------------------------------------
+    option(
+        "pairing",
+        "latest_model",
+        "latest_model: each data cloud against the newest model before it (map-to-scan);"
+        " synchronized: model and data by header stamp within sync_tolerance (two sensors)",
+        STREAM,
+        Group.STREAM,
+        choices=PAIRING_MODES,
+    ),
+    option(
+        "sync_tolerance",
+        0.05,
+        "largest header stamp difference (s) of a synchronized pair",
+        STREAM,
+        Group.STREAM,
+        bounds=(0.0, 10.0),
+        needs=("pairing", "synchronized"),
+    ),
+    option(
+        "dims",
+        3,
+        "3: register x y z; 2: x y only (planar scans)",
+        STREAM,
+        Group.STREAM,
+        bounds=(2, 3),
+    ),
+    option(
+        "max_points",
+        20000,
+        "cap on points per cloud (a random subset above it) to bound latency; 0 = no cap",
+        STREAM,
+        Group.STREAM,
+        bounds=(0, 100_000_000),
+    ),
+    option(
+        "warm_start",
+        True,
+        "start each registration from the previous converged estimate (tracking)",
+        STREAM,
+        Group.STREAM,
+    ),
+    option(
+        "model_frame",
+        "",
+        "expected frame id of the model clouds; empty = accept any",
+        STREAM,
+        Group.STREAM,
+    ),
+    option(
+        "data_frame",
+        "",
+        "expected frame id of the data clouds; empty = accept any",
+        STREAM,
+        Group.STREAM,
+    ),
+    option(
+        "publish_aligned",
+        True,
+        "the data cloud mapped into the model frame: the node publishes ~/aligned while it has"
+        " subscribers, frisicp bag writes it into the result bag",
+        STREAM,
+        Group.STREAM,
+        flags=("--aligned",),
+    ),
+    # --- the algorithm: frisicp_core.RegistrationConfig ----------------------------------------
+    core_option(
+        "method",
+        "algorithm: frisicp (bidirectional, free scale), icp (s = 1), scale-icp (Zinsser), bounded-icp (Du)",
+    ),
+    core_option("levels", "sparse-to-dense levels", bounds=(1, 10)),
+    core_option("coarsest_points", "points on the coarsest level", bounds=(10, 10_000_000)),
+    core_option(
+        "max_iterations", "iteration cap per level", core="criteria.max_iterations", bounds=(1, 100_000)
+    ),
+    core_option(
+        "relative_motion",
+        "convergence: motion between iterations relative to the model's RMS radius (finest level)",
+        core="criteria.relative_motion",
+        bounds=(0.0, 1.0),
+    ),
+    core_option(
+        "relative_rmse",
+        "convergence: relative change of the error between iterations",
+        core="criteria.relative_rmse",
+        bounds=(0.0, 1.0),
+    ),
+    core_option(
+        "coarse_relative_motion",
+        "convergence motion threshold on the coarse levels",
+        core="criteria.coarse_relative_motion",
+        bounds=(0.0, 1.0),
+    ),
+    core_option(
+        "overlap",
+        "fraction (0, 1] of each cloud expected to have a counterpart: only that share of the"
+        " closest correspondences is used (trimming); 1 = all",
+        bounds=(0.0, 1.0),
+    ),
+    core_option(
+        "max_distance",
+        "drop correspondences farther than this many times the median distance; 0 = keep all",
+        kind=float,
+        zero_means="off",
+        bounds=(0.0, 1e6),
+    ),
+    core_option(
+        "initialization",
+        "starting guess when there is no warm start: identity, moments, principal-axes",
+        flags=("--init", "--initialization"),
+    ),
+    core_option(
+        "acceleration", "Anderson acceleration of the iterations (kept only when it lowers the error)"
+    ),
+    core_option("seed", "seed of the random down-sampling", bounds=(0, 2**31 - 1)),
+    core_option("backend", "KD-tree library (auto: pykdtree when installed)", choices=BACKENDS),
+    core_option(
+        "drop_nonfinite",
+        "drop NaN/Inf points instead of failing (clouds in the node and bag mode always drop them)",
+        surfaces=Surface.REGISTER,
+    ),
+)
+OPTIONS_BY_NAME: dict[str, Option] = {o.name: o for o in OPTIONS}
+# RegistrationConfig fields that are no option: the pipeline sets the warm start itself.
+NOT_OPTIONS = ("initial",)
+
+
+def options_for(surface: Surface, groups: Iterable[Group] = tuple(Group)) -> tuple[Option, ...]:
+    wanted = set(groups)
+    return tuple(o for o in OPTIONS if surface & o.surfaces and o.group in wanted)
+
+
+def defaults(surface: Surface = Surface.NODE) -> dict[str, Value]:
+    """Every default of a surface's options, by name (for NODE: the YAML file's content)."""
+    return {o.name: o.default for o in options_for(surface)}
+
+
+def checked(values: Mapping[str, object]) -> dict[str, Value]:
+    """Values converted to their options' types; ValueError names an unknown or invalid one."""
+    result = {}
+    for name, value in values.items():
+        if name not in OPTIONS_BY_NAME:
+            raise ValueError(f"unknown option {name!r}")
+        result[name] = OPTIONS_BY_NAME[name].check(value)
+    return result
+
+
+def registration_config(
+    values: Mapping[str, object], base: RegistrationConfig | None = None
+) -> RegistrationConfig:
+    """``base`` (default ``RegistrationConfig()``) with the algorithm options among ``values``.
+
+    Values are checked against the table first; then the core validates its own options (a bad
+    combination raises its ValueError).
+    """
+    base = base or RegistrationConfig()
+    top: dict[str, Any] = {}
+    nested: dict[str, dict[str, Any]] = {}
+    for name, value in checked(values).items():
+        row = OPTIONS_BY_NAME[name]
+        if row.core is None:
+            continue
+        owner, _, field_name = row.core.rpartition(".")
+        if owner:
+            nested.setdefault(owner, {})[field_name] = row.to_core(value)
+        else:
+            top[field_name] = row.to_core(value)
+    for owner, changes in nested.items():
+        top[owner] = dataclasses.replace(getattr(base, owner), **changes)
+    return dataclasses.replace(base, **top)
+
+
+def algorithm_values(config: RegistrationConfig, surface: Surface = STREAM) -> dict[str, Value]:
+    """A configuration's algorithm options in parameter form (None -> zero, enum -> its value)."""
+    values: dict[str, Value] = {}
+    for row in options_for(surface, [Group.ALGORITHM]):
+        value: Any = config
+        for part in (row.core or row.name).split("."):
+            value = getattr(value, part)
+        if isinstance(value, enum.Enum):
+            value = value.value
+        values[row.name] = row.kind() if value is None else row.kind(value)
+    return values
+
+
+@dataclass(frozen=True)
+class PipelineSettings:
+    """What a :class:`~frisicp_ros.stream.pipeline.RegistrationPipeline` runs with: the stream
+    options of the table and the core's configuration. Build it with :func:`settings_from` (table
+    defaults for what is not given) or :meth:`create`; construction validates every field.
+    """
+
+    dims: int
+    max_points: int
+    warm_start: bool
+    pairing: str
+    sync_tolerance: float
+    model_frame: str
+    data_frame: str
+    publish_aligned: bool
+    registration: RegistrationConfig
+
+    def __post_init__(self) -> None:
+        for name in _STREAM_FIELDS:
+            OPTIONS_BY_NAME[name].check(getattr(self, name))
+
+    @classmethod
+    def create(cls, **values: Value) -> PipelineSettings:
+        """Settings from option values by name; everything else at its table default."""
+        return settings_from(values)
+
+    def values(self) -> dict[str, Value]:
+        """Every stream and algorithm option in parameter form (what ``create`` takes back)."""
+        stream: dict[str, Value] = {name: getattr(self, name) for name in _STREAM_FIELDS}
+        return {**stream, **algorithm_values(self.registration)}
+
+    def updated(self, **changes: Value) -> PipelineSettings:
+        """A validated copy with some options changed (ValueError names the bad one)."""
+        return settings_from({**self.values(), **changes})
+
+
+_STREAM_FIELDS = tuple(f.name for f in dataclasses.fields(PipelineSettings) if f.name != "registration")
+
+
+def settings_from(values: Mapping[str, object]) -> PipelineSettings:
+    """PipelineSettings from option values (any surface's; the others are checked and left out).
+
+    Missing stream and algorithm options take their table defaults. Raises ValueError with the
+    reason for an unknown option, a value of the wrong type, out of range or not among the
+    choices, and anything the core refuses.
+    """
+    given = checked(values)
+    stream = {**defaults(STREAM), **given}
+    algorithm = {
+        o.name: stream[o.name] for o in options_for(EVERYWHERE, [Group.ALGORITHM]) if o.name in stream
+    }
+    return PipelineSettings(
+        registration=registration_config(algorithm),
+        **{name: stream[name] for name in _STREAM_FIELDS},  # type: ignore[arg-type]  # checked above
+    )
+
+
+# --- config/frisicp.yaml --------------------------------------------------------------------------
+
+YAML_HEADER = """\
+# Parameters of the frisicp register_node, all of them, with their defaults.
+# GENERATED from frisicp_ros/stream/settings.py by `make config`: edit the table there, not this
+# file (a test checks the two agree).
+# Load with: ros2 run frisicp_ros register_node --ros-args --params-file config/frisicp.yaml
+# "/**" applies to the node under any name or namespace. Also shown by
+# `ros2 param describe /frisicp <name>`.
+/**:
+  ros__parameters:
+"""
+
+
+def render_yaml() -> str:
+    """The text of config/frisicp.yaml: every node parameter with its description and default."""
+    lines = [YAML_HEADER.rstrip("\n")]
+    for group in Group:
+        rows = options_for(Surface.NODE, [group])
+        if not rows:
+            continue
+        title = "algorithm (frisicp_core.RegistrationConfig)" if group is Group.ALGORITHM else group.value
+        lines.append(f"    # --- {title} ---")
+        for row in rows:
+            comment = textwrap.wrap(
+                _yaml_comment(row),
+                100,
+                initial_indent="    # ",
+                subsequent_indent="    #   ",
+                break_on_hyphens=False,
+            )
+            lines.extend(comment)
+            lines.append(f"    {row.name}: {_yaml_value(row.default)}")
+    return "\n".join(lines) + "\n"
+
+
+def _yaml_comment(row: Option) -> str:
+    notes = []
+    if row.choices is not None and not all(choice in row.description for choice in row.choices):
+        notes.append("one of " + " | ".join(row.choices))
+    if row.bounds is not None:
+        notes.append(f"range [{_number(row.bounds[0])}, {_number(row.bounds[1])}]")
+    if row.read_only:
+        notes.append("read-only")
+    return row.description + (f" ({'; '.join(notes)})" if notes else "")
+
+
+def _yaml_value(value: Value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        text = repr(value)
+        mantissa, e, exponent = text.partition("e")
+        # YAML 1.1 readers (PyYAML) take 1e-05 for a string: give the mantissa a point.
+        return f"{mantissa}.0e{exponent}" if e and "." not in mantissa else text
+    if isinstance(value, int):
+        return str(value)
+    plain = value.replace("_", "").replace("-", "").isalnum() and value[0].isalpha()
+    return value if plain and value.lower() not in _YAML_WORDS else f'"{value}"'
+
+
+_YAML_WORDS = {"true", "false", "yes", "no", "on", "off", "null", "y", "n"}  # would not read as strings
+
+
+if __name__ == "__main__":
+    print(render_yaml(), end="")
