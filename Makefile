@@ -4,12 +4,12 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo test bench bench-quick bench-paper bench-paper-quick bench-node bench-bag clean
+.PHONY: setup demo test lint config bench bench-quick bench-paper bench-paper-quick bench-node bench-bag clean
 
 $(STAMP): setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[ros,test,bench]'
+	$(BIN)/pip install --quiet -e '.[ros,test,bench,lint]'
 	touch $(STAMP)
 
 setup: $(STAMP)
@@ -21,6 +21,17 @@ demo: $(STAMP)
 test: $(STAMP)
 	@$(BIN)/python -m pytest -q test; rc=$$?; \
 	  if [ $$rc -eq 5 ]; then echo "pytest collected no tests: failing"; fi; exit $$rc
+
+# ruff (lint and format) over the tree; mypy: the core strict, the ROS side and the benchmark typed.
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
+	$(BIN)/mypy --strict frisicp_core
+	$(BIN)/mypy frisicp_ros frisicp_bench
+
+# config/frisicp.yaml is generated from the settings table (frisicp_ros/stream/settings.py).
+config: $(STAMP)
+	$(BIN)/python -m frisicp_ros.stream.settings > config/frisicp.yaml.new && mv config/frisicp.yaml.new config/frisicp.yaml
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/core_speed.py

@@ -50,6 +50,8 @@ setup(
             "pillow>=9",
         ],
         "bench": ["matplotlib>=3.6", "pillow>=9"],
+        # `make lint`; pinned, since new releases add rules and change formatting.
+        "lint": ["ruff==0.17.6", "mypy==2.4.1"],
         # Only for comparing with Open3D in `frisicp bench` (about 900 MB; its wheel also needs
         # the system library libusb-1.0). Never a runtime or test dependency.
         "open3d": ["open3d>=0.18"],

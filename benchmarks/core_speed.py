@@ -59,8 +59,8 @@ def level_breakdown_ms(result) -> tuple[float, list[float]]:
     coarsest level's first iteration (validation, thinning, trees, screening the initial
     hypotheses); a level's time runs from its first iteration to the next level's (or the end)."""
     starts = [next(r.seconds for r in result.history if r.level == k) for k in range(len(result.levels))]
-    ends = starts[1:] + [result.seconds]
-    return starts[0] * 1e3, [(e - b) * 1e3 for b, e in zip(starts, ends)]
+    ends = [*starts[1:], result.seconds]
+    return starts[0] * 1e3, [(e - b) * 1e3 for b, e in zip(starts, ends, strict=False)]
 
 
 def median_seconds(action, repeats: int) -> float:

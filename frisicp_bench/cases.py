@@ -95,7 +95,7 @@ def make_cases(family: Family, scales: tuple[float, ...], seed: int) -> list[Cas
     cases = []
     for scale in scales:
         # Seeded by (seed, family, scale) so a subset run (--quick) reproduces the full run's cases.
-        rng = np.random.default_rng([seed, _stable_hash(family.name), int(round(scale * 1000))])
+        rng = np.random.default_rng([seed, _stable_hash(family.name), round(scale * 1000)])
         cases.append(Case(family, scale, perturbation(family, scale, rng)))
     return cases
 

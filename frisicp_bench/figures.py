@@ -107,14 +107,16 @@ def _records_of(run: BenchmarkRun, case: Case) -> list[CaseRecord]:
 def registration_figure(run: BenchmarkRun, case: Case) -> plt.Figure:
     """Model (red) and data (blue) before registration and after each method, like Figs 1 and 4."""
     records = _records_of(run, case)
-    panels = [("before registration", Similarity.identity(case.family.dim), None)]
+    panels: list[tuple[str, Similarity | None, CaseRecord | None]] = [
+        ("before registration", Similarity.identity(case.family.dim), None)
+    ]
     panels += [(run.method_label(r.method), r.estimate, r) for r in records]
     columns = 4 if len(panels) > 6 else 3
     rows = -(-len(panels) // columns)
     figure, axes_grid = plt.subplots(rows, columns, figsize=(4 * columns, 3.8 * rows))
     model = _thinned(case.family.model)
     data = _thinned(case.data)
-    for axes, (title, estimate, record) in zip(axes_grid.ravel(), panels):
+    for axes, (title, estimate, record) in zip(axes_grid.ravel(), panels, strict=False):
         axes.set_title(title + _verdict(record), fontsize=10)
         axes.plot(*_view(model).T, ".", color=MODEL_COLOUR, ms=1.0)
         if estimate is not None:
@@ -158,7 +160,7 @@ def success_figure(run: BenchmarkRun) -> plt.Figure:
     keys = ordered_methods(run)
     scales = sorted({c.scale for c in run.cases})
     figure, panels = plt.subplots(1, 2, figsize=(12, 0.5 * len(keys) + 1.8), sharey=True)
-    for axes, true_pose in zip(panels, (True, False)):
+    for axes, true_pose in zip(panels, (True, False), strict=False):
         grid = np.full((len(keys), len(scales)), np.nan)
         for i, key in enumerate(keys):
             for j, scale in enumerate(scales):

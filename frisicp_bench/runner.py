@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from typing import Any
 
 from frisicp_core import Similarity
 
@@ -65,9 +66,7 @@ def score(case: Case, method: MethodSpec) -> CaseRecord:
     errors = pose_errors(outcome.similarity, case.truth, data, family.size)
     rms = symmetric_rms(outcome.similarity.apply(data), family.model)
     return CaseRecord(
-        family=family.name,
-        scale=case.scale,
-        method=method.key,
+        **_identity(case, method),
         rotation_deg=errors.rotation_deg,
         scale_error=errors.scale,
         translation_error=errors.translation,
@@ -83,24 +82,16 @@ def score(case: Case, method: MethodSpec) -> CaseRecord:
 
 
 def _failed(case: Case, method: MethodSpec, reason: str, seconds: float = math.nan) -> CaseRecord:
-    nan = math.nan
-    return CaseRecord(
-        case.family.name,
-        case.scale,
-        method.key,
-        nan,
-        nan,
-        nan,
-        nan,
-        None,
-        0,
-        seconds,
-        False,
-        False,
-        None,
-        (),
-        reason,
+    no_result: dict[str, Any] = dict.fromkeys(
+        ("rotation_deg", "scale_error", "translation_error", "rms"), math.nan
     )
+    no_result.update(rms_ratio=None, iterations=0, converged=False, success=False, estimate=None, history=())
+    return CaseRecord(**_identity(case, method), **no_result, seconds=seconds, failure=reason)
+
+
+def _identity(case: Case, method: MethodSpec) -> dict[str, Any]:
+    """Which case a record scores."""
+    return {"family": case.family.name, "scale": case.scale, "method": method.key}
 
 
 def run_benchmark(

@@ -85,7 +85,8 @@ def medians_table(run: BenchmarkRun) -> list[str]:
                 records = select(run, method=key, kind=kind, true_pose=true_pose)
                 if not records:
                     continue
-                ratio = median(r.rms_ratio for r in records) if not true_pose else math.nan
+                ratios = [r.rms_ratio for r in records if r.rms_ratio is not None]
+                ratio = median(ratios) if not true_pose else math.nan
                 rows.append(
                     [
                         f"{kind} {'true pose' if true_pose else 'vs reference'}",

@@ -30,8 +30,9 @@ def _log_rotation(rotation: FloatArray) -> FloatArray:
     if dim == 2:
         return np.array([np.arctan2(rotation[1, 0], rotation[0, 0])])
     if dim == 3:
-        return Rotation.from_matrix(rotation).as_rotvec()
-    skew = np.real(logm(rotation))
+        vector: FloatArray = Rotation.from_matrix(rotation).as_rotvec()
+        return vector
+    skew: FloatArray = np.real(logm(rotation))
     return skew[np.triu_indices(dim, 1)]
 
 
@@ -40,10 +41,12 @@ def _exp_rotation(vector: FloatArray, dim: int) -> FloatArray:
         c, s = np.cos(vector[0]), np.sin(vector[0])
         return np.array([[c, -s], [s, c]])
     if dim == 3:
-        return Rotation.from_rotvec(vector).as_matrix()
+        matrix: FloatArray = Rotation.from_rotvec(vector).as_matrix()
+        return matrix
     skew = np.zeros((dim, dim))
     skew[np.triu_indices(dim, 1)] = vector
-    return expm(skew - skew.T)
+    rotation: FloatArray = expm(skew - skew.T)
+    return rotation
 
 
 class AndersonAccelerator:

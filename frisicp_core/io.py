@@ -92,7 +92,7 @@ def _read_text(file: Path) -> FloatArray:
 
 
 def _read_pcd(file: Path) -> FloatArray:
-    from pypcd4 import PointCloud
+    from pypcd4.pypcd4 import PointCloud  # the package root re-exports it implicitly
 
     cloud = PointCloud.from_path(file)
     axes = tuple(a for a in ("x", "y", "z") if a in cloud.fields)

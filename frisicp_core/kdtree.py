@@ -6,6 +6,8 @@ installed; scipy's cKDTree with ``workers=-1`` is the fallback.
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 
 from .similarity import FloatArray
@@ -13,7 +15,7 @@ from .similarity import FloatArray
 try:  # pragma: no cover - exercised by whichever backend is installed
     from pykdtree.kdtree import KDTree as _PyKDTree
 except ImportError:  # pragma: no cover
-    _PyKDTree = None
+    _PyKDTree = None  # type: ignore[misc,assignment]
 
 from scipy.spatial import cKDTree
 
@@ -32,6 +34,7 @@ class NearestNeighbors:
             raise ValueError("backend 'pykdtree' requested but pykdtree is not installed")
         self.points = np.ascontiguousarray(points, dtype=np.float64)
         self.backend = "pykdtree" if backend != "scipy" and _PyKDTree is not None else "scipy"
+        self._tree: Any  # pykdtree's KDTree or scipy's cKDTree; their query signatures differ
         if self.backend == "pykdtree":
             self._tree = _PyKDTree(self.points, leafsize=16)
         else:

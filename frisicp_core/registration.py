@@ -190,7 +190,7 @@ class _Solver:
                 if proposal_rms < rms:
                     sim, pairs, rms = proposal, proposal_pairs, proposal_rms
                     continue
-                accelerator.reset()  # extrapolation overshot: take the plain (monotone) step
+                accelerator.reset()  # type: ignore[union-attr]  # overshot: take the plain (monotone) step
             previous_rms = rms
             sim = step
             pairs = self.correspond(level, sim)

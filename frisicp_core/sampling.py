@@ -30,5 +30,5 @@ def level_sizes(n_data: int, n_model: int, levels: int, coarsest_points: int) ->
     if levels <= 1 or largest <= coarsest_points:
         return [largest]
     ratio = (largest / coarsest_points) ** (1.0 / (levels - 1))
-    sizes = [int(round(coarsest_points * ratio**k)) for k in range(levels - 1)]
-    return sizes + [largest]
+    sizes = [round(coarsest_points * ratio**k) for k in range(levels - 1)]
+    return [*sizes, largest]

@@ -22,7 +22,8 @@ def bumpy_surface(n: int = 5000, seed: int = 0) -> FloatArray:
     theta = np.arccos(np.clip(directions[:, 2], -1, 1))
     phi = np.arctan2(directions[:, 1], directions[:, 0])
     radius = 1.0 + 0.25 * np.sin(3 * theta) * np.cos(2 * phi) + 0.1 * np.cos(5 * phi + 0.3)
-    return directions * radius[:, None] * np.array([1.5, 1.0, 0.7])
+    points: FloatArray = directions * radius[:, None] * np.array([1.5, 1.0, 0.7])
+    return points
 
 
 def closed_contour(n: int = 1000) -> FloatArray:

@@ -68,7 +68,8 @@ class Similarity:
     def apply(self, points: ArrayLike) -> FloatArray:
         """Map an (N, m) array (or one m-vector) through the transform."""
         pts = np.asarray(points, dtype=np.float64)
-        return (self.scale * pts) @ self.rotation.T + self.translation
+        mapped: FloatArray = (self.scale * pts) @ self.rotation.T + self.translation
+        return mapped
 
     __call__ = apply
 
@@ -121,7 +122,7 @@ class Similarity:
     @classmethod
     def from_quaternion(cls, scale: float, quaternion: ArrayLike, translation: ArrayLike) -> Similarity:
         """Build a 3-D similarity from a quaternion (x, y, z, w); it is normalised first."""
-        return cls(scale, quaternion_to_rotation(quaternion), translation)
+        return cls(scale, quaternion_to_rotation(quaternion), np.asarray(translation, dtype=np.float64))
 
 
 def axis_angle_rotation(axis: ArrayLike, angle: float) -> FloatArray:

@@ -17,7 +17,7 @@ import numpy as np
 
 from frisicp_ros.bag.reader import BagError, read_messages
 from frisicp_ros.stream.pairing import Pairer
-from frisicp_ros.stream.pointcloud2 import CloudParts, field_specs
+from frisicp_ros.stream.pointcloud2 import CloudParts, layout_of
 from frisicp_ros.stream.settings import PipelineSettings
 
 
@@ -45,14 +45,8 @@ class PlainCloud(CloudParts):
         stamp = msg.header.stamp
         return cls(
             header=Header(Stamp(int(stamp.sec), int(stamp.nanosec)), str(msg.header.frame_id)),
-            height=int(msg.height),
-            width=int(msg.width),
-            fields=field_specs(msg.fields),
-            is_bigendian=bool(msg.is_bigendian),
-            point_step=int(msg.point_step),
-            row_step=int(msg.row_step),
             data=np.asarray(msg.data, dtype=np.uint8),
-            is_dense=bool(msg.is_dense),
+            **layout_of(msg),
         )
 
     @property

@@ -8,6 +8,7 @@ ending the whole read.
 
 from __future__ import annotations
 
+import contextlib
 from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -84,10 +85,9 @@ def open_bag(path: str | Path) -> Iterator[AnyReader]:
     try:
         yield reader
     finally:
-        try:
+        # Closing a corrupt file may fail again; there is nothing left to save.
+        with contextlib.suppress(Exception):
             reader.close()
-        except Exception:  # noqa: BLE001 - closing a corrupt file may fail again; nothing left to save
-            pass
 
 
 def topic_summaries(reader: AnyReader) -> list[TopicSummary]:

@@ -12,20 +12,21 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from frisicp_ros.cli.errors import CommandError
+from frisicp_ros.cli.command import CommandError
 from frisicp_ros.cli.options import add_options, given_values
 from frisicp_ros.stream.settings import PipelineSettings, Surface, settings_from
 
+NAME = "bag"
+SUMMARY = "register the cloud pairs of a bag offline (no ROS installation needed)"
+DESCRIPTION = (
+    "Register every (model, data) PointCloud2 pair of a rosbag2 folder, .db3 or "
+    ".mcap file, or ROS 1 .bag, paired and registered as the live node does it, with the "
+    "node's defaults. One JSON line per pair on stdout (or --out), a progress bar and a "
+    "summary on stderr."
+)
 
-def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    parser = subparsers.add_parser(
-        "bag",
-        help="register the cloud pairs of a bag offline (no ROS installation needed)",
-        description="Register every (model, data) PointCloud2 pair of a rosbag2 folder, .db3 or "
-        ".mcap file, or ROS 1 .bag, paired and registered as the live node does it, with the "
-        "node's defaults. One JSON line per pair on stdout (or --out), a progress bar and a "
-        "summary on stderr.",
-    )
+
+def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("input", help="rosbag2 folder, .db3 or .mcap file, or ROS 1 .bag file")
     parser.add_argument("--model-topic", required=True, help="PointCloud2 topic that stays fixed")
     parser.add_argument("--data-topic", required=True, help="PointCloud2 topic registered onto the model")
@@ -50,7 +51,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_options(parser, Surface.BAG)
-    parser.set_defaults(func=run)
 
 
 def settings_from_args(args: argparse.Namespace) -> PipelineSettings:

@@ -6,19 +6,18 @@ import argparse
 import json
 
 from frisicp_ros.bag.reader import BagError, open_bag, topic_summaries
-from frisicp_ros.cli.errors import CommandError
+from frisicp_ros.cli.command import CommandError
+
+NAME = "bag-info"
+SUMMARY = "list a bag's topics, types and counts, marking the PointCloud2 topics"
+DESCRIPTION = (
+    "List the topics of a rosbag2 folder, .db3, .mcap or ROS 1 .bag file (no ROS installation needed)."
+)
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
-        "bag-info",
-        help="list a bag's topics, types and counts, marking the PointCloud2 topics",
-        description="List the topics of a rosbag2 folder, .db3, .mcap or ROS 1 .bag file "
-        "(no ROS installation needed).",
-    )
+def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("input", help="rosbag2 folder, .db3 or .mcap file, or ROS 1 .bag file")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
-    parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

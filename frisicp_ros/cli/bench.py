@@ -5,16 +5,17 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from frisicp_ros.cli.errors import CommandError
+from frisicp_ros.cli.command import CommandError
+
+NAME = "bench"
+SUMMARY = "run the paper's experiments on the real data; write tables, JSON and figures"
+DESCRIPTION = (
+    "FRISICP against ICP, Zinßer's and Du's scale ICP (and Open3D when installed) "
+    "over the paper's 15 scale factors on MPEG-7 contours and the Stanford bunny."
+)
 
 
-def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser(
-        "bench",
-        help="run the paper's experiments on the real data; write tables, JSON and figures",
-        description="FRISICP against ICP, Zinßer's and Du's scale ICP (and Open3D when installed) "
-        "over the paper's 15 scale factors on MPEG-7 contours and the Stanford bunny.",
-    )
+def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--quick",
         action="store_true",
@@ -35,7 +36,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the perturbations")
     parser.add_argument("--no-open3d", action="store_true", help="leave Open3D out even when installed")
     parser.add_argument("--no-figures", action="store_true", help="tables and JSON only")
-    parser.set_defaults(func=run)
 
 
 def run(args: argparse.Namespace) -> int:

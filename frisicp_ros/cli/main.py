@@ -1,7 +1,7 @@
 """The ``frisicp`` command: one argparse front end, one module per subcommand.
 
-Each subcommand module exposes ``add_parser(subparsers)``, which registers its parser and sets
-``func`` (called with the parsed arguments, returns the exit code). Errors meant for the user
+Each subcommand module exposes ``NAME``, ``SUMMARY`` (for ``frisicp --help``), ``DESCRIPTION``,
+``configure(parser)`` (its arguments) and ``run(args)`` (returns the exit code). Errors meant for the user
 are raised as :class:`CommandError` and printed without a traceback. Subcommands import their
 heavy dependencies (rosbags, the benchmark) inside ``run``, so ``frisicp --help`` stays light.
 """
@@ -13,7 +13,7 @@ import sys
 from collections.abc import Sequence
 
 from frisicp_ros.cli import bag, bag_info, bench, register
-from frisicp_ros.cli.errors import CommandError
+from frisicp_ros.cli.command import CommandError
 
 # In the order `frisicp --help` lists them.
 SUBCOMMANDS = (register, bag, bag_info, bench)
@@ -25,7 +25,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     subparsers = parser.add_subparsers(dest="command", required=True, metavar="COMMAND")
     for subcommand in SUBCOMMANDS:
-        subcommand.add_parser(subparsers)
+        parser_of = subparsers.add_parser(
+            subcommand.NAME, help=subcommand.SUMMARY, description=subcommand.DESCRIPTION
+        )
+        subcommand.configure(parser_of)
+        parser_of.set_defaults(func=subcommand.run)
     return parser
 
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from frisicp_ros.cli.errors import CommandError
+from frisicp_ros.cli.command import CommandError
 from frisicp_ros.stream.settings import Group, Option, Surface, Value, options_for
 
 

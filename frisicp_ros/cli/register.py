@@ -9,18 +9,17 @@ import numpy as np
 
 from frisicp_core import RegistrationConfig, register
 from frisicp_core.io import CloudFileError, read_points
-from frisicp_ros.cli.errors import CommandError
+from frisicp_ros.cli.command import CommandError
 from frisicp_ros.cli.options import add_options, flag_of, given_values
 from frisicp_ros.stream.outputs import result_summary
 from frisicp_ros.stream.settings import Surface, Value, algorithm_values, registration_config
 
+NAME = "register"
+SUMMARY = "register DATA onto MODEL (files: .ply .pcd .xyz .csv .txt .npy)"
+DESCRIPTION = "Find s, R, t with MODEL ≈ s·R·DATA + t and print them."
 
-def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[type-arg]
-    parser = subparsers.add_parser(
-        "register",
-        help="register DATA onto MODEL (files: .ply .pcd .xyz .csv .txt .npy)",
-        description="Find s, R, t with MODEL ≈ s·R·DATA + t and print them.",
-    )
+
+def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("data", help="point cloud to move")
     parser.add_argument("model", help="point cloud that stays fixed")
     presets = parser.add_mutually_exclusive_group()
@@ -37,7 +36,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:  # type: ignore[
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     add_options(parser, Surface.REGISTER)
-    parser.set_defaults(func=run)
 
 
 def config_from_args(args: argparse.Namespace) -> RegistrationConfig:

@@ -16,6 +16,7 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -164,8 +165,12 @@ def run_stream(args: argparse.Namespace) -> tuple[list[tuple[Similarity, Similar
 
     # scale and rms arrive in the same order as the transforms (same publisher thread, one each)
     publisher_node.create_subscription(TransformStamped, "/frisicp/transform", on_transform, 10)
-    publisher_node.create_subscription(Float64, "/frisicp/scale", lambda m: scales.append(m.data), 10)
-    publisher_node.create_subscription(Float64, "/frisicp/rms", lambda m: rms.append(m.data), 10)
+
+    def collect(values: list[float]) -> Callable[[Float64], None]:
+        return lambda msg: values.append(msg.data)
+
+    publisher_node.create_subscription(Float64, "/frisicp/scale", collect(scales), 10)
+    publisher_node.create_subscription(Float64, "/frisicp/rms", collect(rms), 10)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(publisher_node)
     spinner = threading.Thread(target=executor.spin, daemon=True)
@@ -243,7 +248,7 @@ def _collect(order, sent, transforms, arrival, scales, rms, lock):
 def print_new_rows(order, sent, transforms, arrival, scales, rms, lock, start, printed) -> int:
     rows = _collect(order, sent, transforms, arrival, scales, rms, lock)
     answered = _answered(order, transforms, lock)
-    for (truth, estimate, error, latency), stamp in zip(rows[printed:], answered[printed:]):
+    for (truth, estimate, error, latency), stamp in zip(rows[printed:], answered[printed:], strict=False):
         rot_err = np.degrees(rotation_angle(estimate.rotation.T @ truth.rotation))
         trans_err = np.linalg.norm(estimate.translation - truth.translation)
         print(

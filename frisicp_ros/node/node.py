@@ -116,13 +116,15 @@ class RegistrationNode(Node):
             )
         else:
             self.create_subscription(
-                PointCloud2, "model", self._on_model, SUBSCRIPTION_QOS[values["model_qos"]]
+                PointCloud2, "model", self._on_model, SUBSCRIPTION_QOS[str(values["model_qos"])]
             )
-            self.create_subscription(PointCloud2, "data", self._on_data, SUBSCRIPTION_QOS[values["data_qos"]])
+            self.create_subscription(
+                PointCloud2, "data", self._on_data, SUBSCRIPTION_QOS[str(values["data_qos"])]
+            )
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.add_on_set_parameters_callback(self._validate_parameters)
         self.add_post_set_parameters_callback(self._apply_parameters)
-        self.create_timer(values["diagnostics_period"], self._publish_diagnostics)
+        self.create_timer(float(values["diagnostics_period"]), self._publish_diagnostics)
 
         self._stopping = threading.Event()
         self._worker = threading.Thread(target=self._work, name="frisicp-registration", daemon=True)

@@ -7,8 +7,6 @@ then the core's): the reasons a user sees are those of the table and of ``Regist
 
 from __future__ import annotations
 
-from typing import Any
-
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -42,7 +40,7 @@ def current_values(node: Node) -> dict[str, Value]:
     return {name: node.get_parameter(name).value for name in NAMES}
 
 
-def with_changes(node: Node, changes: list[Parameter[Any]]) -> dict[str, Value]:
+def with_changes(node: Node, changes: list[Parameter]) -> dict[str, Value]:
     values = current_values(node)
     values.update({p.name: p.value for p in changes if p.name in NAMES})
     return values

@@ -70,7 +70,7 @@ def replay_options(node: Node, values: Mapping[str, Value]) -> ReplayOptions:
     return options
 
 
-class _Stopped(Exception):
+class _Stopped(Exception):  # noqa: N818 - control flow, not an error
     """The node is shutting down: leave the stream loop."""
 
 

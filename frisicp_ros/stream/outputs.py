@@ -88,15 +88,15 @@ class MessageTypes:
         )
 
 
-def _rclpy_array(typecode: str, dtype: type) -> Callable[[np.ndarray], array.array]:
+def _rclpy_array(typecode: str, dtype: type[np.generic]) -> Callable[[np.ndarray], array.array[Any]]:
     """array.array is stored as is by rclpy's generated setters; frombytes is one memcpy.
 
     (Bytes, lists and memoryviews go through per-element checks instead: see docs/node.md.)
     """
 
-    def convert(values: np.ndarray) -> array.array:
+    def convert(values: np.ndarray) -> array.array[Any]:
         out = array.array(typecode)
-        out.frombytes(memoryview(np.ascontiguousarray(values, dtype=dtype)).cast("B"))
+        out.frombytes(np.ascontiguousarray(values, dtype=dtype).data.cast("B"))
         return out
 
     return convert

@@ -15,6 +15,7 @@ Items are opaque (messages, usually); only the stamps (integer nanoseconds) are 
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Sequence
 from typing import Generic, Literal, TypeVar
 
 ModelT = TypeVar("ModelT")
@@ -34,7 +35,7 @@ class Pairer(Generic[ModelT, DataT]):
         if buffer_size < 1:
             raise ValueError(f"buffer_size must be >= 1, got {buffer_size}")
         self.mode = mode
-        self.tolerance_ns = int(round(tolerance_sec * 1e9))
+        self.tolerance_ns = round(tolerance_sec * 1e9)
         self._models: deque[tuple[int, ModelT]] = deque(maxlen=1 if mode == "latest_model" else buffer_size)
         self._data: deque[tuple[int, DataT]] = deque(maxlen=buffer_size)
         self.unpaired_data = 0  # data clouds that found no model (dropped)
@@ -89,7 +90,7 @@ class Pairer(Generic[ModelT, DataT]):
         self.unpaired_data += dropped - (1 if data_was_buffered else 0)
 
 
-def _closest(buffer: deque[tuple[int, object]], stamp_ns: int, tolerance_ns: int) -> int | None:
+def _closest(buffer: Sequence[tuple[int, object]], stamp_ns: int, tolerance_ns: int) -> int | None:
     """Index of the buffered stamp nearest to ``stamp_ns`` within the tolerance, or None."""
     best, best_gap = None, tolerance_ns
     for index, (stamp, _) in enumerate(buffer):

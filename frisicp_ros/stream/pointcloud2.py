@@ -11,9 +11,10 @@ No rclpy import here: the offline bag mode uses this module without ROS.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Protocol, TypeVar
+from typing import Any, Literal, Protocol, TypeVar
 
 import numpy as np
 
@@ -98,7 +99,7 @@ def coordinate_views(msg: Any, dims: int = 3) -> list[np.ndarray]:
             f"malformed cloud: row_step {row_step} < width * point_step = {width} * {point_step}"
         )
     fields = _validated_fields(msg.fields, point_step)
-    byte_order = ">" if msg.is_bigendian else "<"
+    byte_order: Literal[">", "<"] = ">" if msg.is_bigendian else "<"
     views = []
     for name in COORDINATE_NAMES[:dims]:
         if name not in fields:
@@ -139,7 +140,7 @@ def _validated_fields(fields: Sequence[PointFieldLike], point_step: int) -> dict
         extents.append((int(field.offset), end, field.name))
         by_name[field.name] = field
     extents.sort()
-    for (_, end_a, name_a), (start_b, _, name_b) in zip(extents, extents[1:]):
+    for (_, end_a, name_a), (start_b, _, name_b) in itertools.pairwise(extents):
         if start_b < end_a:
             raise CloudError(f"malformed cloud: fields '{name_a}' and '{name_b}' overlap")
     return by_name
@@ -195,18 +196,7 @@ def aligned_cloud(
             info = np.iinfo(view.dtype)
             values = np.clip(np.rint(np.nan_to_num(values)), info.min, info.max)
         view[...] = values
-    return make_cloud(
-        CloudParts(
-            height=int(msg.height),
-            width=int(msg.width),
-            fields=field_specs(msg.fields),
-            is_bigendian=bool(msg.is_bigendian),
-            point_step=int(msg.point_step),
-            row_step=int(msg.row_step),
-            data=data,
-            is_dense=bool(msg.is_dense),
-        )
-    )
+    return make_cloud(CloudParts(data=data, **layout_of(msg)))
 
 
 class _CloudOverData:
@@ -216,6 +206,19 @@ class _CloudOverData:
         self.height, self.width, self.fields = msg.height, msg.width, msg.fields
         self.is_bigendian, self.point_step, self.row_step = msg.is_bigendian, msg.point_step, msg.row_step
         self.data = data
+
+
+def layout_of(msg: Any) -> dict[str, Any]:
+    """Every CloudParts field of a PointCloud2 message but ``data``, as plain values."""
+    return {
+        "height": int(msg.height),
+        "width": int(msg.width),
+        "fields": field_specs(msg.fields),
+        "is_bigendian": bool(msg.is_bigendian),
+        "point_step": int(msg.point_step),
+        "row_step": int(msg.row_step),
+        "is_dense": bool(msg.is_dense),
+    }
 
 
 def field_specs(fields: Sequence[PointFieldLike]) -> tuple[FieldSpec, ...]:
@@ -236,7 +239,7 @@ def points_to_parts(
     pts = np.asarray(points, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] not in (2, 3):
         raise ValueError(f"points must be (N, 2) or (N, 3), got {pts.shape}")
-    byte_order = ">" if big_endian else "<"
+    byte_order: Literal[">", "<"] = ">" if big_endian else "<"
     columns: list[tuple[str, np.dtype, np.ndarray]] = [
         (name, DATATYPES[datatype], pts[:, i]) for i, name in enumerate(COORDINATE_NAMES[: pts.shape[1]])
     ]
@@ -250,7 +253,8 @@ def points_to_parts(
     table = np.empty(pts.shape[0], dtype=record)
     for name, _, values in columns:
         table[name] = values
-    fields = tuple(FieldSpec(name, record.fields[name][1], codes[dtype]) for name, dtype, _ in columns)
+    offsets = {name: offset for name, (_, offset, *_) in (record.fields or {}).items()}
+    fields = tuple(FieldSpec(name, offsets[name], codes[dtype]) for name, dtype, _ in columns)
     return CloudParts(
         height=1,
         width=pts.shape[0],

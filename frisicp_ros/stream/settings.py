@@ -113,6 +113,21 @@ def option(
     return Option(name, type(default), default, description, surfaces, group, **details)
 
 
+def node_option(name: str, default: Value, description: str, **details: Any) -> Option:
+    """A parameter of the live node only, set at start-up (subscriptions are made once)."""
+    return option(name, default, description, Surface.NODE, Group.NODE, read_only=True, **details)
+
+
+def replay_option(name: str, default: Value, description: str, **details: Any) -> Option:
+    """A parameter of the node's bag replay (``frisicp_ros.node.replay``), set at start-up."""
+    return option(name, default, description, Surface.NODE, Group.REPLAY, read_only=True, **details)
+
+
+def stream_option(name: str, default: Value, description: str, **details: Any) -> Option:
+    """An option of every stream of clouds: the node and ``frisicp bag``."""
+    return option(name, default, description, STREAM, Group.STREAM, **details)
+
+
 def core_option(
     name: str,
     description: str,
@@ -166,143 +181,83 @@ DATA_QOS_CHOICES = ("sensor_data", "reliable")
 
 OPTIONS: tuple[Option, ...] = (
     # --- the live node -------------------------------------------------------------------------
-    option(
+    node_option(
         "model_qos",
         "sensor_data",
         "QoS of the model subscription: sensor_data (best effort, depth 5), reliable (depth 5), or "
         "transient_local (reliable, transient local, depth 1: a latched map)",
-        Surface.NODE,
-        Group.NODE,
         choices=MODEL_QOS_CHOICES,
-        read_only=True,
     ),
-    option(
+    node_option(
         "data_qos",
         "sensor_data",
         "QoS of the data subscription: sensor_data or reliable (depth 5)",
-        Surface.NODE,
-        Group.NODE,
         choices=DATA_QOS_CHOICES,
-        read_only=True,
     ),
-    option(
-        "diagnostics_period",
-        1.0,
-        "seconds between /diagnostics messages",
-        Surface.NODE,
-        Group.NODE,
-        bounds=(0.1, 60.0),
-        read_only=True,
-    ),
+    node_option("diagnostics_period", 1.0, "seconds between /diagnostics messages", bounds=(0.1, 60.0)),
     # --- the node replaying a bag (frisicp_ros.node.replay) ------------------------------------
-    option(
+    replay_option(
         "bag",
         "",
         "replay this bag (rosbag2 folder, .db3/.mcap file or ROS 1 .bag) instead of subscribing;"
         " its topics follow the remappings of model and data; empty = live",
-        Surface.NODE,
-        Group.REPLAY,
-        read_only=True,
     ),
-    option(
+    replay_option(
         "bag_rate",
         1.0,
         "replay speed: 1 = the recorded rate, 2 = twice as fast, 0 = as fast as possible",
-        Surface.NODE,
-        Group.REPLAY,
         bounds=(0.0, 1000.0),
-        read_only=True,
     ),
-    option(
+    replay_option(
         "bag_delay",
         1.0,
         "seconds to wait before the first pair, so subscribers can discover the node",
-        Surface.NODE,
-        Group.REPLAY,
         bounds=(0.0, 3600.0),
-        read_only=True,
     ),
-    option(
+    replay_option(
         "bag_wait_for_subscribers",
         0,
         "before that delay, wait until ~/transform has this many subscribers",
-        Surface.NODE,
-        Group.REPLAY,
         bounds=(0, 1000),
-        read_only=True,
     ),
-    option(
+    replay_option(
         "bag_exit_on_end",
         True,
         "shut the node down when the bag is done (after subscribers acknowledged the outputs);"
         " false = stay up, idle",
-        Surface.NODE,
-        Group.REPLAY,
-        read_only=True,
     ),
     # --- the stream: node and bag mode ---------------------------------------------------------
-    option(
+    stream_option(
         "pairing",
         "latest_model",
         "latest_model: each data cloud against the newest model before it (map-to-scan);"
         " synchronized: model and data by header stamp within sync_tolerance (two sensors)",
-        STREAM,
-        Group.STREAM,
         choices=PAIRING_MODES,
     ),
-    option(
+    stream_option(
         "sync_tolerance",
         0.05,
         "largest header stamp difference (s) of a synchronized pair",
-        STREAM,
-        Group.STREAM,
         bounds=(0.0, 10.0),
         needs=("pairing", "synchronized"),
     ),
-    option(
-        "dims",
-        3,
-        "3: register x y z; 2: x y only (planar scans)",
-        STREAM,
-        Group.STREAM,
-        bounds=(2, 3),
-    ),
-    option(
+    stream_option("dims", 3, "3: register x y z; 2: x y only (planar scans)", bounds=(2, 3)),
+    stream_option(
         "max_points",
         20000,
         "cap on points per cloud (a random subset above it) to bound latency; 0 = no cap",
-        STREAM,
-        Group.STREAM,
         bounds=(0, 100_000_000),
     ),
-    option(
-        "warm_start",
-        True,
-        "start each registration from the previous converged estimate (tracking)",
-        STREAM,
-        Group.STREAM,
+    stream_option(
+        "warm_start", True, "start each registration from the previous converged estimate (tracking)"
     ),
-    option(
-        "model_frame",
-        "",
-        "expected frame id of the model clouds; empty = accept any",
-        STREAM,
-        Group.STREAM,
-    ),
-    option(
-        "data_frame",
-        "",
-        "expected frame id of the data clouds; empty = accept any",
-        STREAM,
-        Group.STREAM,
-    ),
-    option(
+    stream_option("model_frame", "", "expected frame id of the model clouds; empty = accept any"),
+    stream_option("data_frame", "", "expected frame id of the data clouds; empty = accept any"),
+    stream_option(
         "publish_aligned",
         True,
         "the data cloud mapped into the model frame: the node publishes ~/aligned while it has"
         " subscribers, frisicp bag writes it into the result bag",
-        STREAM,
-        Group.STREAM,
         flags=("--aligned",),
     ),
     # --- the algorithm: frisicp_core.RegistrationConfig ----------------------------------------

@@ -139,6 +139,7 @@ def test_bench_command_names_the_missing_data_folder(tmp_path, capsys) -> None:
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.real_data
 def test_apple_contour_from_the_real_silhouette() -> None:
     from frisicp_bench.datasets import silhouette_contour
 

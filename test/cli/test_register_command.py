@@ -75,7 +75,7 @@ def test_register_human_output_and_methods(tmp_path):
 
 
 @pytest.mark.parametrize(
-    "content, message",
+    ("content", "message"),
     [
         (None, "no such file"),
         (

@@ -1,5 +1,7 @@
 """FRISICP recovers isotropic scale, rotation and translation; the baselines behave as the paper says."""
 
+import itertools
+
 import numpy as np
 import pytest
 from support.bunny import bunny, scan_pose
@@ -124,6 +126,7 @@ def test_robust_option_ignores_outliers():
     assert result.fitness == pytest.approx(0.8, abs=0.01)
 
 
+@pytest.mark.real_data
 @pytest.mark.parametrize("scale", [0.1, 0.9, 2.9])
 def test_real_bunny_against_a_scaled_copy(scale):
     model = bunny("bun_zipper.ply")
@@ -133,6 +136,7 @@ def test_real_bunny_against_a_scaled_copy(scale):
     assert rotation_error < 0.5 and scale_error < 0.005
 
 
+@pytest.mark.real_data
 @pytest.mark.parametrize("scale", [0.3, 1.0, 2.5])
 def test_real_partial_overlap_scan_pair(scale):
     """bun045 onto bun000: real scans, about 10 % of each without a counterpart, 34 deg apart."""
@@ -162,9 +166,10 @@ def test_error_never_increases_within_a_level(acceleration):
     result = register(data, model, RegistrationConfig(acceleration=acceleration, overlap=0.9))
     for level in range(len(result.levels)):
         errors_of_level = [r.rms for r in result.history if r.level == level]
-        assert all(b <= a * (1 + 1e-12) for a, b in zip(errors_of_level, errors_of_level[1:]))
+        assert all(b <= a * (1 + 1e-12) for a, b in itertools.pairwise(errors_of_level))
 
 
+@pytest.mark.real_data
 def test_acceleration_needs_far_fewer_iterations_on_real_partial_overlap():
     """Point-to-point ICP crawls on real scans; extrapolated steps get there in fewer iterations."""
     from frisicp_core import downsample

@@ -34,6 +34,8 @@ from std_srvs.srv import Trigger  # noqa: E402
 from frisicp_core import bumpy_surface  # noqa: E402
 from frisicp_ros.node.node import RegistrationNode  # noqa: E402
 
+pytestmark = pytest.mark.ros
+
 TIMEOUT = 20.0
 RELIABLE = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
 
@@ -110,7 +112,7 @@ def register_pair(probe: Probe, model, data) -> TransformStamped:
 
 
 def test_registers_pair_and_publishes_every_output(ros):
-    node, probe = ros
+    _node, probe = ros
     probe.clear()
     model, data = scene_messages()
     transform = register_pair(probe, model, data)
@@ -130,7 +132,7 @@ def test_registers_pair_and_publishes_every_output(ros):
 
 
 def test_aligned_cloud_keeps_intensity_and_lands_on_model(ros):
-    node, probe = ros
+    _node, probe = ros
     probe.clear()
     model, data = scene_messages(stamp_ns=1_700_000_001_000_000_000)
     register_pair(probe, model, data)
@@ -143,7 +145,7 @@ def test_aligned_cloud_keeps_intensity_and_lands_on_model(ros):
 
 
 def test_diagnostics_report_rates_latency_and_result(ros):
-    node, probe = ros
+    _node, probe = ros
     probe.clear()
     register_pair(probe, *scene_messages(stamp_ns=1_700_000_002_000_000_000))
 

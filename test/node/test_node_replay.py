@@ -26,6 +26,8 @@ from support.ros import wait_until
 
 from frisicp_core import Similarity, rotation_angle
 
+pytestmark = pytest.mark.ros
+
 # Set per test (fixture), not at import: other modules' import-time settings must not leak in or out.
 ROS_SETTINGS = {"ROS_DOMAIN_ID": "207", "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
 ENV = {**{k: v for k, v in os.environ.items() if k != "ROS_STATIC_PEERS"}, **ROS_SETTINGS}
@@ -123,7 +125,7 @@ def assert_transforms_match(transforms, scales, scenario) -> None:
     assert [m.header.stamp.sec * 10**9 + m.header.stamp.nanosec for m in transforms] == [
         d.header_ns for d in data
     ]
-    for msg, scale, record in zip(transforms, scales, data):
+    for msg, scale, record in zip(transforms, scales, data, strict=False):
         assert (msg.header.frame_id, msg.child_frame_id) == (MODEL_FRAME, DATA_FRAME)
         q, t = msg.transform.rotation, msg.transform.translation
         estimate = Similarity.from_quaternion(scale.data, [q.x, q.y, q.z, q.w], [t.x, t.y, t.z])

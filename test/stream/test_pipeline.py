@@ -126,7 +126,7 @@ def test_settings_validate_through_the_table_and_the_core():
         PipelineSettings.create(overlap=1.5)
     with pytest.raises(ValueError, match="dims"):
         PipelineSettings.create(dims=4)
-    with pytest.raises(ValueError):
+    with pytest.raises(ValueError, match="method must be one of"):
         PipelineSettings.create().updated(method="ransac")
     with pytest.raises(ValueError, match=r"relative_motion must be in \[0, 1\)"):  # the core's own check
         PipelineSettings.create(relative_motion=1.0)

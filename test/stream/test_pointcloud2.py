@@ -106,7 +106,7 @@ def test_nan_and_inf_points_are_dropped_and_cap_downsamples(types):
 
 
 @pytest.mark.parametrize(
-    "break_it, message",
+    ("break_it", "message"),
     [
         (lambda parts: {"data": parts.data[:-1]}, r"len\(data\)"),
         (lambda parts: {"fields": parts.fields[1:]}, "no 'x' field"),
@@ -124,10 +124,10 @@ def test_nan_and_inf_points_are_dropped_and_cap_downsamples(types):
             },
             "point_step too small",
         ),
-        (lambda parts: {"fields": (FieldSpec("x", 0, 9),) + parts.fields[1:]}, "unknown datatype"),
+        (lambda parts: {"fields": (FieldSpec("x", 0, 9), *parts.fields[1:])}, "unknown datatype"),
         (
             lambda parts: {
-                "fields": parts.fields + (FieldSpec("x", 12, FLOAT32),),
+                "fields": (*parts.fields, FieldSpec("x", 12, FLOAT32)),
                 "point_step": 16,
                 "row_step": 16 * parts.width,
                 "data": np.zeros(16 * parts.width, np.uint8),

@@ -1,4 +1,7 @@
-"""The one exception a subcommand raises for a user mistake (leaf module: no imports)."""
+"""The error a subcommand raises for a user mistake.
+
+A leaf module (no frisicp imports), so subcommands and ``main`` depend on it and not on each other.
+"""
 
 from __future__ import annotations
 
