@@ -12,4 +12,8 @@ JSON and PNG figures into ``docs/benchmarks/``. Modules, in data-flow order:
 - :mod:`.runner` runs every (family, scale, method) case and collects records
 - :mod:`.tables` Markdown tables and JSON
 - :mod:`.figures` convergence curves and registration pictures (matplotlib, Agg)
+- :mod:`.run` one run: suite -> cases -> report (what ``frisicp bench`` calls)
+
+The data folder: ``--data``, else ``$FRISICP_DATA``, else ``../shared/data`` from the current
+directory. Only ``frisicp_core`` is imported: the benchmark needs no ROS.
 """

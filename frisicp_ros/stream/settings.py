@@ -28,8 +28,7 @@ from typing import Any
 
 from frisicp_core import RegistrationConfig
 from frisicp_core.kdtree import BACKENDS
-
-from .pairing import PAIRING_MODES
+from frisicp_ros.stream.pairing import PAIRING_MODES
 
 Value = bool | int | float | str
 
