@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
 
-from frisicp_core import Similarity, bumpy_surface
+from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface
 from frisicp_ros.stream.outputs import rosbags_message_types
 from frisicp_ros.stream.pointcloud2 import points_to_parts
 
@@ -37,10 +37,7 @@ CLOUD_TYPE = "sensor_msgs/msg/PointCloud2"
 
 def similarity(k: int, rng: np.random.Generator) -> Similarity:
     axis = rng.normal(size=3)
-    axis /= np.linalg.norm(axis)
-    angle = np.deg2rad(rng.uniform(5, 40))
-    skew = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    rotation = np.eye(3) + np.sin(angle) * skew + (1 - np.cos(angle)) * skew @ skew
+    rotation = axis_angle_rotation(axis, np.deg2rad(rng.uniform(5, 40)))
     return Similarity(rng.uniform(0.5, 2.0), rotation, rng.normal(size=3))
 
 

@@ -29,7 +29,7 @@ import numpy as np
 from pykdtree.kdtree import KDTree
 from scipy.spatial import cKDTree
 
-from frisicp_core import Similarity, register, rotation_angle
+from frisicp_core import Similarity, axis_angle_rotation, register, rotation_angle
 from frisicp_core.io import read_points
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -38,10 +38,7 @@ SCALES = [round(0.1 + 0.2 * k, 1) for k in range(15)]
 
 
 def rotation_10deg() -> np.ndarray:
-    axis = np.array([0.3, 1.0, 0.2]) / np.linalg.norm([0.3, 1.0, 0.2])
-    skew = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
-    angle = np.deg2rad(10.0)
-    return np.eye(3) + np.sin(angle) * skew + (1 - np.cos(angle)) * skew @ skew
+    return axis_angle_rotation([0.3, 1.0, 0.2], np.deg2rad(10.0))
 
 
 def pass_pykdtree(a: np.ndarray, b: np.ndarray) -> None:

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from frisicp_core import Similarity
+from frisicp_core import Similarity, axis_angle_rotation
 from frisicp_core.similarity import FloatArray
 
 from .metrics import model_size
@@ -74,10 +74,7 @@ def random_rotation(dim: int, max_degrees: float, rng: np.random.Generator) -> n
         return np.array([[c, -s], [s, c]])
     if dim != 3:
         raise ValueError(f"only 2-D and 3-D cases exist, got {dim}-D")
-    axis = rng.normal(size=3)
-    axis /= np.linalg.norm(axis)
-    skew = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
-    return np.eye(3) + np.sin(angle) * skew + (1.0 - np.cos(angle)) * skew @ skew
+    return axis_angle_rotation(rng.normal(size=3), angle)
 
 
 def perturbation(family: Family, scale: float, rng: np.random.Generator) -> Similarity:

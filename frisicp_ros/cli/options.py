@@ -12,7 +12,7 @@ import argparse
 from typing import Any
 
 from frisicp_ros.cli.command import CommandError
-from frisicp_ros.stream.settings import Group, Option, Surface, Value, options_for
+from frisicp_ros.stream.settings import OPTIONS_BY_NAME, Group, Option, Surface, Value, options_for
 
 
 def add_options(parser: argparse.ArgumentParser, surface: Surface) -> None:
@@ -58,7 +58,7 @@ def given_values(args: argparse.Namespace, surface: Surface) -> dict[str, Value]
         if row.name not in given or row.needs is None:
             continue
         other, wanted = row.needs
-        actual = given.get(other, next(r.default for r in options_for(surface) if r.name == other))
+        actual = given.get(other, OPTIONS_BY_NAME[other].default)
         if actual != wanted:
             raise CommandError(
                 f"{flag(row)} applies only with {flag_of(other, surface)} {wanted} (it is {actual})"
@@ -71,4 +71,6 @@ def flag(row: Option) -> str:
 
 
 def flag_of(name: str, surface: Surface) -> str:
-    return next(flag(row) for row in options_for(surface) if row.name == name)
+    """The flag of a table option (``surface``: where it is asked for; every option it names has one)."""
+    assert surface & OPTIONS_BY_NAME[name].surfaces, (name, surface)
+    return flag(OPTIONS_BY_NAME[name])
