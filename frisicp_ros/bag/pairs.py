@@ -1,10 +1,15 @@
 """The (model, data) cloud pairs of a bag, in bag order, paired exactly as the node pairs them.
 
-Messages are read with ``bag_reader``, paired by the shared ``pairing.Pairer`` on their header
-stamps, and handed on as :class:`PlainCloud`: the PointCloud2 fields as plain picklable values.
-rosbags' message classes are generated at run time and do not unpickle in a worker process;
-PlainCloud does, shares the bytes of the original message (no copy), and is duck-type
-compatible with ``pointcloud2`` and ``pipeline`` (``header.stamp``, ``fields[i].name`` ...).
+Messages are read with ``frisicp_ros.bag.reader``, paired by the shared
+``frisicp_ros.stream.pairing.Pairer`` on their header stamps, and handed on as
+:class:`PlainCloud`: the PointCloud2 fields as plain picklable values. rosbags' message classes
+are generated at run time and do not unpickle in a worker process; PlainCloud does, shares the
+bytes of the original message (no copy), and is duck-type compatible with ``pointcloud2`` and
+``pipeline`` (``header.stamp``, ``header.frame_id``, ``fields[i].name`` ...).
+
+So the pipeline and ``aligned_cloud`` must read only what PlainCloud carries: anything new they
+need from a message has to be added to :meth:`PlainCloud.from_message` (and ``layout_of``) too;
+the bag mode's tests fail otherwise.
 """
 
 from __future__ import annotations
