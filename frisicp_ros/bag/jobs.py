@@ -11,7 +11,7 @@ import multiprocessing
 import os
 import signal
 from collections import deque
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Generator, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
 from contextlib import contextmanager
 from typing import TypeVar
@@ -26,7 +26,7 @@ WORKER_ENVIRONMENT = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_
 
 def ordered_map(
     function: Callable[[InputT], ResultT], inputs: Iterable[InputT], jobs: int, window: int | None = None
-) -> Iterator[tuple[InputT, ResultT]]:
+) -> Generator[tuple[InputT, ResultT], None, None]:
     """Yield ``(input, function(input))`` in input order, computed by ``jobs`` processes.
 
     ``function`` and the inputs must be picklable when ``jobs > 1``. Closing the generator

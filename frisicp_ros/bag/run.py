@@ -14,8 +14,10 @@ import statistics
 import sys
 import threading
 import time
+from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
+from types import FrameType
 
 from tqdm import tqdm
 
@@ -79,11 +81,11 @@ class InterruptRequest:
 
     def __init__(self) -> None:
         self.requested = False
-        self._previous: signal.Handlers | int | None = None
+        self._previous: Callable[[int, FrameType | None], object] | int | None = None
 
     def __enter__(self) -> InterruptRequest:
         if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._on_interrupt)  # type: ignore[assignment]
+            self._previous = signal.signal(signal.SIGINT, self._on_interrupt)
         return self
 
     def _on_interrupt(self, signum: int, frame: object) -> None:

@@ -16,7 +16,7 @@
 from __future__ import annotations
 
 import threading
-from collections.abc import Callable, Iterable, Iterator
+from collections.abc import Callable, Generator, Iterable
 from contextlib import closing
 from dataclasses import dataclass
 from typing import Any, Protocol, TypeVar
@@ -40,12 +40,14 @@ PairT = TypeVar("PairT", bound=CloudPair)
 Registrar = Callable[[PairT], "PairOutcome | None"]
 # Maps a registrar over pairs, yielding (pair, outcome) in pair order: serially in this thread,
 # or over worker processes (frisicp_ros.bag.jobs.ordered_map).
-PairMapper = Callable[[Registrar[PairT], Iterable[PairT]], Iterator[tuple[PairT, "PairOutcome | None"]]]
+PairMapper = Callable[
+    [Registrar[PairT], Iterable[PairT]], Generator[tuple[PairT, "PairOutcome | None"], None, None]
+]
 
 
 def serial_map(
     register: Registrar[PairT], pairs: Iterable[PairT]
-) -> Iterator[tuple[PairT, PairOutcome | None]]:
+) -> Generator[tuple[PairT, PairOutcome | None], None, None]:
     for pair in pairs:
         yield pair, register(pair)
 
@@ -61,7 +63,7 @@ def run_stream(
     ``emit`` runs in the calling thread; an exception in it (or a KeyboardInterrupt) stops the
     loop and closes the mapper, which cancels work not yet started.
     """
-    with closing(mapper(register, pairs)) as registered:  # type: ignore[type-var]  # a generator
+    with closing(mapper(register, pairs)) as registered:
         for pair, outcome in registered:
             if outcome is not None:
                 emit(pair, outcome)

@@ -80,15 +80,15 @@ class Option:
         """``value`` as this option's type, or ValueError naming the option and the reason."""
         if self.kind is float and isinstance(value, int) and not isinstance(value, bool):
             value = float(value)
-        if type(value) is not self.kind:
+        if not isinstance(value, bool | int | float | str) or type(value) is not self.kind:
             raise ValueError(f"{self.name} must be a {self.kind.__name__}, got {value!r}")
         if self.choices is not None and value not in self.choices:
             raise ValueError(f"{self.name} must be one of {', '.join(self.choices)}, got {value!r}")
-        if self.bounds is not None:
+        if self.bounds is not None and isinstance(value, int | float):
             low, high = self.bounds
-            if not low <= value <= high:  # type: ignore[operator]  # kind is int or float here
+            if not low <= value <= high:
                 raise ValueError(f"{self.name} must be in [{_number(low)}, {_number(high)}], got {value!r}")
-        return value  # type: ignore[return-value]  # checked: one of the Value types
+        return value
 
     def to_core(self, value: Value) -> object:
         """The RegistrationConfig value of a parameter value (zero -> None, str -> enum)."""
@@ -430,10 +430,8 @@ def settings_from(values: Mapping[str, object]) -> PipelineSettings:
     algorithm = {
         o.name: stream[o.name] for o in options_for(EVERYWHERE, [Group.ALGORITHM]) if o.name in stream
     }
-    return PipelineSettings(
-        registration=registration_config(algorithm),
-        **{name: stream[name] for name in _STREAM_FIELDS},  # type: ignore[arg-type]  # checked above
-    )
+    stream_fields: dict[str, Any] = {name: stream[name] for name in _STREAM_FIELDS}  # types checked above
+    return PipelineSettings(registration=registration_config(algorithm), **stream_fields)
 
 
 # --- config/frisicp.yaml --------------------------------------------------------------------------
