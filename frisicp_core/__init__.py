@@ -12,6 +12,7 @@ from .result import IterationRecord, LevelReport, RegistrationResult
 from .sampling import downsample
 from .shapes import bumpy_surface, closed_contour
 from .similarity import Similarity, axis_angle_rotation, rotation_angle
+from .verdict import Verdict, judge
 
 __all__ = [
     "ConvergenceCriteria",
@@ -23,12 +24,14 @@ __all__ = [
     "RegistrationConfig",
     "RegistrationResult",
     "Similarity",
+    "Verdict",
     "as_point_set",
     "axis_angle_rotation",
     "bumpy_surface",
     "closed_contour",
     "downsample",
     "estimate_similarity",
+    "judge",
     "nearest",
     "register",
     "rotation_angle",

@@ -37,6 +37,7 @@ from .points import as_point_set, check_same_dimension, rms_radius
 from .result import IterationRecord, LevelReport, RegistrationResult
 from .sampling import downsample, level_sizes
 from .similarity import FloatArray, Similarity
+from .verdict import judge
 
 # Iterations each initial hypothesis gets on the coarsest level before the best is chosen:
 # enough for the wrong ones to settle into their (higher-error) local minima.
@@ -300,6 +301,20 @@ def register(
         sim, report, pairs = solver.run_level(index, level, sim, final=index == last)
         reports.append(report)
 
+    forward_total = pairs.total - (model_set.shape[0] if bidirectional else 0)
+    overlap_forward = pairs.forward_sq.shape[0] / max(forward_total, 1)
+    overlap_backward = (
+        pairs.backward_sq.shape[0] / max(pairs.total - forward_total, 1) if bidirectional else 1.0
+    )
+    verdict = judge(
+        sim,
+        converged=reports[-1].converged,
+        rms=_rms(pairs.forward_sq, pairs.backward_sq),
+        overlap_forward=overlap_forward,
+        overlap_backward=overlap_backward,
+        moment_scale=rms_radius(model_set) / rms_radius(data_set),
+        model_radius=solver.model_radius,
+    )
     return RegistrationResult(
         similarity=sim,
         rms=_rms(pairs.forward_sq, pairs.backward_sq),
@@ -311,4 +326,9 @@ def register(
         history=tuple(solver.history),
         seconds=time.perf_counter() - start,
         method=config.method,
+        overlap_forward=overlap_forward,
+        overlap_backward=overlap_backward,
+        reliable=verdict.reliable,
+        reason=verdict.reason,
+        warm_started=config.initial is not None,
     )

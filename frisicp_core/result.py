@@ -37,6 +37,13 @@ class RegistrationResult:
     were used (after trimming/gating): ``forward_rms`` data -> model, ``backward_rms``
     model -> data, ``rms`` over both pair sets together (the FRISICP objective, Eq. 3).
     ``fitness`` is the fraction of pairs used. ``history`` has one record per iteration.
+
+    ``overlap_forward`` is the estimated share of the data points that lie on the model,
+    ``overlap_backward`` the share of the model points that lie on the data (a scan in a map:
+    about 1 and the scan's share of the map). ``reliable`` is the plausibility verdict
+    (:mod:`frisicp_core.verdict`): False means do not trust or reuse this similarity, and
+    ``reason`` says why. ``warm_started`` is True when the result comes from ``config.initial``
+    (False after a cold start, including a fallback from an implausible warm start).
     """
 
     similarity: Similarity
@@ -49,6 +56,11 @@ class RegistrationResult:
     history: tuple[IterationRecord, ...]
     seconds: float
     method: Method
+    overlap_forward: float
+    overlap_backward: float
+    reliable: bool
+    reason: str
+    warm_started: bool
 
     @property
     def iterations(self) -> tuple[int, ...]:
