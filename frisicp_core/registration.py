@@ -260,8 +260,19 @@ def register(
     correspondences are needed. ``config`` defaults to ``RegistrationConfig()``;
     ``RegistrationConfig.paper()`` runs the published algorithm exactly. Raises ``ValueError``
     on unusable input (see :func:`as_point_set`).
+
+    A warm start (``config.initial``) whose result fails the plausibility verdict is retried
+    cold: a poisoned start must not turn later good pairs into wrong answers.
     """
     config = config or RegistrationConfig()
+    result = _register(data, model, config)
+    if config.initial is not None and not result.reliable:
+        cold = _register(data, model, replace(config, initial=None))
+        return replace(cold, seconds=result.seconds + cold.seconds)
+    return result
+
+
+def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> RegistrationResult:
     start = time.perf_counter()
     data_set = as_point_set(data, "data", drop_nonfinite=config.drop_nonfinite)
     model_set = as_point_set(model, "model", drop_nonfinite=config.drop_nonfinite)
