@@ -30,13 +30,18 @@ class Initialization(str, Enum):
 
     IDENTITY: s = 1, R = I, t = 0 (the paper).
     MOMENTS: centroids aligned, s = ratio of RMS radii, R = I.
-    PRINCIPAL_AXES: MOMENTS plus one hypothesis per proper principal-axes alignment; each is
-    registered on the coarsest level and the one with the lowest error is kept.
+    PRINCIPAL_AXES: MOMENTS plus one hypothesis per proper principal-axes alignment.
+    SEARCH: PRINCIPAL_AXES plus the data left in place (R = I, its centroid fixed) at scales
+    around the RMS-radius ratio: the right start when the frames are roughly aligned but the
+    clouds overlap only partly (a scan in a map), where centroids and radii mislead.
+    With several hypotheses, all are iterated together on the coarsest level and the one with
+    the lowest error is kept (see ``frisicp_core.hypotheses``).
     """
 
     IDENTITY = "identity"
     MOMENTS = "moments"
     PRINCIPAL_AXES = "principal-axes"
+    SEARCH = "search"
 
 
 @dataclass(frozen=True)
@@ -66,23 +71,32 @@ class RegistrationConfig:
     """Everything ``register`` can be told. ``RegistrationConfig.paper()`` is the paper exactly.
 
     Paper options: ``method``, ``levels`` and ``coarsest_points`` (sparse-to-dense hierarchy),
-    ``criteria``. Ours: ``overlap`` and ``max_distance`` (robustness to partial overlap and
-    outliers), ``initialization`` (start far from the truth), ``initial`` (warm start),
-    ``drop_nonfinite``, ``seed`` (the random down-sampling), ``backend`` (KD-tree library).
+    ``criteria``. Ours, on by default: ``overlap`` (estimated per direction), ``symmetric``
+    (scale rule), ``initialization`` (hypothesis search), ``acceleration``. Also ``initial``
+    (warm start), ``max_distance`` (gating), ``drop_nonfinite``, ``seed`` (the random
+    down-sampling), ``backend`` (KD-tree library).
 
-    ``overlap`` in (0, 1]: in each direction only this fraction of the correspondences, the
-    closest ones, enters the estimate (trimmed ICP, Chetverikov et al. 2002); 1 keeps all.
-    ``max_distance``: correspondences farther than this many times the median correspondence
-    distance of their direction are dropped (None keeps all).
+    ``overlap``: None (default) estimates, in each direction separately and at every iteration,
+    which share of the nearest-neighbour pairs belongs to the overlap (trimmed ICP's criterion,
+    see :mod:`frisicp_core.overlap`): full overlap, a scan in a map, a map in a scan and two
+    partly overlapping scans all work without being told. A number in (0, 1] fixes that share
+    in both directions instead (1 keeps every pair, the paper).
+    ``max_distance``: correspondences farther than this many times the median kept distance of
+    their direction are dropped (None keeps all).
+    ``symmetric``: Horn's symmetric scale, errors measured half-way between the two frames, so
+    registering data onto model and model onto data are one problem (see
+    :mod:`frisicp_core.estimate`); False is the paper's (Umeyama's) scale, errors in the model
+    frame, which favours a smaller data set when the overlap is partial.
     """
 
     method: Method = Method.FRISICP
     levels: int = 3
     coarsest_points: int = 1000
     criteria: ConvergenceCriteria = field(default_factory=ConvergenceCriteria)
-    overlap: float = 1.0
+    overlap: float | None = None
     max_distance: float | None = None
-    initialization: Initialization = Initialization.PRINCIPAL_AXES
+    symmetric: bool = True
+    initialization: Initialization = Initialization.SEARCH
     initial: Similarity | None = None
     acceleration: bool = True
     drop_nonfinite: bool = False
@@ -94,7 +108,10 @@ class RegistrationConfig:
         object.__setattr__(self, "initialization", Initialization(self.initialization))
         _require(self.levels >= 1, f"levels must be >= 1, got {self.levels}")
         _require(self.coarsest_points >= 10, f"coarsest_points must be >= 10, got {self.coarsest_points}")
-        _require(0 < self.overlap <= 1, f"overlap must be in (0, 1], got {self.overlap}")
+        _require(
+            self.overlap is None or 0 < self.overlap <= 1,
+            f"overlap must be in (0, 1] or None (estimated), got {self.overlap}",
+        )
         _require(
             self.max_distance is None or self.max_distance > 0,
             f"max_distance must be positive or None, got {self.max_distance}",
@@ -110,6 +127,8 @@ class RegistrationConfig:
             "method": method,
             "initialization": Initialization.IDENTITY,
             "levels": 3 if method is Method.FRISICP else 1,
+            "overlap": 1.0,
+            "symmetric": False,
             "acceleration": False,
         }
         settings.update(overrides)
@@ -117,10 +136,11 @@ class RegistrationConfig:
 
     @classmethod
     def robust(cls, **overrides: object) -> RegistrationConfig:
-        """Our settings for partial overlap (two scans, a scan in a map): 80 % trimming."""
-        settings: dict[str, object] = {"overlap": 0.8}
-        settings.update(overrides)
-        return cls(**settings)  # type: ignore[arg-type]
+        """The old preset for partial overlap; the default now estimates the overlap itself.
+
+        Kept so existing code runs: it is ``RegistrationConfig(**overrides)``.
+        """
+        return cls(**overrides)  # type: ignore[arg-type]
 
 
 def _require(condition: bool, message: str) -> None:

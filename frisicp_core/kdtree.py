@@ -49,6 +49,22 @@ class NearestNeighbors:
         dist, idx = self._tree.query(q, k=1, workers=-1)
         return dist * dist, idx
 
+    def spacing(self, sample: int) -> float:
+        """Median distance from a stored point to its nearest *other* stored point.
+
+        Measured on at most ``sample`` points spread evenly over the storage order, so it costs
+        a small fixed number of queries whatever the set's size; 0 for fewer than 2 points.
+        """
+        n = self.points.shape[0]
+        if n < 2:
+            return 0.0
+        q = self.points[:: max(1, n // sample)]
+        if self.backend == "pykdtree":
+            dist_sq, _ = self._tree.query(q, k=2, sqr_dists=True)
+            return float(np.sqrt(np.median(dist_sq[:, 1])))
+        dist, _ = self._tree.query(q, k=2)
+        return float(np.median(dist[:, 1]))
+
 
 def nearest(points: FloatArray, queries: FloatArray, backend: str = "auto") -> tuple[FloatArray, np.ndarray]:
     """One-off nearest neighbours of ``queries`` among ``points`` (builds a tree; see NearestNeighbors)."""

@@ -7,12 +7,25 @@ Objective (paper Eq. 3), for data A = {a_i} and model B = {b_j}:
 with c(i) the model point nearest to T(a_i) (Eq. 5, forward) and g(j) the data point whose image
 is nearest to b_j (Eq. 6, backward). The backward term forbids the collapse s -> 0 that the
 forward term alone allows. Each iteration fixes c and g and solves the union of both pair sets
-in closed form (Eq. 7, :func:`estimate_similarity`). Eq. 8's incremental update composes to the
-same absolute similarity, which is what is stored here.
+in closed form (Eq. 7, :func:`estimate_similarities`). Eq. 8's incremental update composes to
+the same absolute similarity, which is what is stored here.
+
+Our defaults extend the paper where it assumes full overlap (each can be switched off, and
+``RegistrationConfig.paper()`` switches all off):
+
+- each direction keeps only the pairs of its estimated overlap (:mod:`frisicp_core.overlap`),
+  and the merit of a pose is the sum of both directions' trimmed-ICP criterion psi;
+- the scale is Horn's symmetric one and errors are measured half-way between the frames
+  (merit^2 = (psi_f + psi_b) / s), so data onto model and model onto data are one problem;
+- a cold start screens several initial hypotheses (:mod:`frisicp_core.hypotheses`), all
+  iterated together as one batch on the coarsest level;
+- Anderson acceleration (:mod:`frisicp_core.acceleration`).
 
 Sparse-to-dense (Eq. 4, 9): the sets are thinned into nested levels; the coarsest level is
 solved from the initial guess, each finer level starts from the level above, the last level is
-the full sets.
+the full sets. A level stops when the similarity stops moving (relative to the model's size) or
+the merit stops falling; the result's errors are those of the last correspondence pass, so no
+pass is spent re-measuring a similarity that moved by less than the tolerance.
 
 Speed: a similarity scales all distances by s, so the data point nearest to b_j under T is the
 data point nearest to T^-1(b_j). The backward search therefore queries a KD-tree built once per
@@ -29,86 +42,117 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .acceleration import AndersonAccelerator
-from .config import Initialization, Method, RegistrationConfig
-from .estimate import estimate_similarity
+from .config import Method, RegistrationConfig
+from .estimate import PairPart, estimate_similarities
+from .hypotheses import covariance_scale_bounds, initial_hypotheses, radius_ratio
 from .kdtree import NearestNeighbors
-from .moments import covariance_scale_bounds, moment_guesses
+from .overlap import Selection, select_pairs
 from .points import as_point_set, check_same_dimension, rms_radius
+from .poses import PoseBatch
 from .result import IterationRecord, LevelReport, RegistrationResult
 from .sampling import downsample, level_sizes
 from .similarity import FloatArray, Similarity
 from .verdict import judge
 
-# Iterations each initial hypothesis gets on the coarsest level before the best is chosen:
+# Iterations every initial hypothesis gets on the coarsest level before the best is chosen:
 # enough for the wrong ones to settle into their (higher-error) local minima.
 _SCREENING_ITERATIONS = 10
+# Screening drops a hypothesis whose merit is this many times the best one's, from this pass on.
+_SCREEN_PRUNE_RATIO = 2.0
+_SCREEN_PRUNE_FROM = 2
 # First iteration of a level at which Anderson acceleration may propose steps.
 _ACCELERATE_FROM = 3
+# Points sampled to measure a set's spacing (median distance to the nearest other point).
+_SPACING_SAMPLE = 256
 
 
 @dataclass
 class _Level:
-    """One resolution: the thinned sets, their trees and moments used by the motion test."""
+    """One resolution: the thinned sets, their trees, and what the loop needs to know of them."""
 
     data: FloatArray
     model: FloatArray
     data_tree: NearestNeighbors | None
     model_tree: NearestNeighbors
     data_mean: FloatArray
+    model_mean: FloatArray
     data_second_moment: FloatArray
+    data_spacing: float
+    model_spacing: float
 
     @classmethod
     def build(cls, data: FloatArray, model: FloatArray, bidirectional: bool, backend: str) -> _Level:
+        data_tree = NearestNeighbors(data, backend) if bidirectional else None
+        model_tree = NearestNeighbors(model, backend)
         return cls(
             data=data,
             model=model,
-            data_tree=NearestNeighbors(data, backend) if bidirectional else None,
-            model_tree=NearestNeighbors(model, backend),
+            data_tree=data_tree,
+            model_tree=model_tree,
             data_mean=data.mean(axis=0),
+            model_mean=model.mean(axis=0),
             data_second_moment=data.T @ data / data.shape[0],
+            data_spacing=data_tree.spacing(_SPACING_SAMPLE) if data_tree else 0.0,
+            model_spacing=model_tree.spacing(_SPACING_SAMPLE),
         )
 
-    def motion(self, old: Similarity, new: Similarity) -> float:
-        """RMS over the data of ||new(a) - old(a)||, from the data's first two moments.
-
-        With D = s'R' - sR and d = t' - t: mean ||D a + d||^2 = tr(D M2 D^T) + 2 d.D mean + |d|^2.
-        """
-        lin = new.scale * new.rotation - old.scale * old.rotation
-        shift = new.translation - old.translation
-        value = np.einsum("ij,jk,ik->", lin, self.data_second_moment, lin)
-        value += 2.0 * shift @ lin @ self.data_mean + shift @ shift
-        return float(np.sqrt(max(value, 0.0)))
+    def motion(self, old: PoseBatch, new: PoseBatch) -> FloatArray:
+        """RMS over the data of ||new(a) - old(a)||, per pose."""
+        return old.motion(new, self.data_mean, self.data_second_moment)
 
 
-@dataclass
-class _Pairs:
-    source: FloatArray  # data points
-    target: FloatArray  # their model counterparts
-    forward_sq: FloatArray  # kept squared distances, model frame
-    backward_sq: FloatArray
-    total: int  # pairs before trimming/gating
+@dataclass(frozen=True)
+class _Pass:
+    """One correspondence pass for K poses: each direction's pairs, their selection, the merit."""
+
+    forward_index: np.ndarray  # (K, n_data): model point paired with each data point
+    forward: Selection
+    backward_index: np.ndarray | None  # (K, n_model): data point paired with each model point
+    backward: Selection | None
+    merit: FloatArray  # (K,): what the loop minimises, in distance units (see _Solver.merit)
+
+    def rms(self, k: int = 0) -> tuple[float, float, float]:
+        """RMS of the kept pairs of pose k in the model frame: (both, forward, backward)."""
+        forward = _rms(self.forward.sum_sq[k], self.forward.kept[k])
+        if self.backward is None:
+            return forward, forward, float("nan")
+        both = _rms(
+            self.forward.sum_sq[k] + self.backward.sum_sq[k], self.forward.kept[k] + self.backward.kept[k]
+        )
+        return both, forward, _rms(self.backward.sum_sq[k], self.backward.kept[k])
 
 
-def _keep(dist_sq: FloatArray, config: RegistrationConfig) -> np.ndarray | None:
-    """Indices of the pairs that enter the estimate (None = all), per the robustness options."""
-    n = dist_sq.shape[0]
-    keep: np.ndarray | None = None
-    if config.overlap < 1.0:
-        count = max(1, int(np.ceil(config.overlap * n)))
-        if count < n:
-            keep = np.argpartition(dist_sq, count - 1)[:count]
-    if config.max_distance is not None:
-        candidates = dist_sq if keep is None else dist_sq[keep]
-        limit = config.max_distance**2 * float(np.median(candidates))
-        inside = candidates <= limit
-        if not inside.all():
-            base = np.arange(n) if keep is None else keep
-            keep = base[inside]
-    return keep
+def _level_motion(config: RegistrationConfig, index: int, last: int) -> float:
+    """Convergence tolerance of level ``index`` of ``last + 1``, relative to the model's radius.
+
+    Geometric from ``coarse_relative_motion`` on the coarsest level to ``relative_motion`` on
+    the full sets: each level hands the next a start that one or two of its (more expensive)
+    iterations finish, instead of leaving the finest level to do the crawling.
+    """
+    criteria = config.criteria
+    if last == 0:
+        return criteria.relative_motion
+    fraction = index / last
+    return float(criteria.coarse_relative_motion ** (1.0 - fraction) * criteria.relative_motion**fraction)
+
+
+def _repeats_better(poses: PoseBatch, merit: FloatArray, level: _Level, tolerance: float) -> np.ndarray:
+    """(K,) mask of the poses within ``tolerance`` motion of another pose with a lower merit."""
+    count = len(poses)
+    repeats = np.zeros(count, dtype=bool)
+    for k in range(count):
+        others = poses.take(np.full(count, k))
+        close = level.motion(others, poses) <= tolerance
+        repeats[k] = bool(np.any(close & (merit < merit[k])))
+    return repeats
+
+
+def _rms(sum_sq: float, count: float) -> float:
+    return float(np.sqrt(sum_sq / count)) if count > 0 else float("nan")
 
 
 class _Solver:
-    """Runs the ICP loop of one method on one level."""
+    """Runs one method's ICP iteration on a level, for one pose or a batch of hypotheses."""
 
     def __init__(
         self,
@@ -125,130 +169,148 @@ class _Solver:
         self.start = start
         self.history: list[IterationRecord] = []
 
-    def correspond(self, level: _Level, sim: Similarity) -> _Pairs:
-        moved = sim.apply(level.data)
-        fwd_sq, fwd_idx = level.model_tree.query(moved)
-        keep_f = _keep(fwd_sq, self.config)
-        src_f = level.data if keep_f is None else level.data[keep_f]
-        dst_f = level.model[fwd_idx] if keep_f is None else level.model[fwd_idx[keep_f]]
-        fwd_kept = fwd_sq if keep_f is None else fwd_sq[keep_f]
-        if not self.bidirectional:
-            return _Pairs(src_f, dst_f, fwd_kept, np.empty(0), fwd_sq.shape[0])
-        assert level.data_tree is not None
-        back_sq, back_idx = level.data_tree.query(sim.inverse().apply(level.model))
-        back_sq *= sim.scale**2  # distances measured in the data frame, reported in the model frame
-        keep_b = _keep(back_sq, self.config)
-        if keep_b is None:
-            src_b, dst_b, back_kept = level.data[back_idx], level.model, back_sq
+    def correspond(self, level: _Level, poses: PoseBatch) -> _Pass:
+        """Pair every data point with its nearest model point and (FRISICP) vice versa."""
+        count, dim = len(poses), level.data.shape[1]
+        config = self.config
+        forward_sq, forward_index = level.model_tree.query(poses.apply(level.data).reshape(-1, dim))
+        forward_sq, forward_index = forward_sq.reshape(count, -1), forward_index.reshape(count, -1)
+        forward = select_pairs(
+            forward_sq, np.full(count, level.model_spacing**2), config.overlap, config.max_distance
+        )
+        backward_index: np.ndarray | None = None
+        backward: Selection | None = None
+        if self.bidirectional:
+            assert level.data_tree is not None
+            backward_sq, backward_index = level.data_tree.query(
+                poses.apply_inverse(level.model).reshape(-1, dim)
+            )
+            # Measured in the data frame; times s gives the model frame, like the forward ones.
+            backward_sq = backward_sq.reshape(count, -1) * poses.scale[:, None] ** 2
+            backward_index = backward_index.reshape(count, -1)
+            backward = select_pairs(
+                backward_sq, (level.data_spacing * poses.scale) ** 2, config.overlap, config.max_distance
+            )
+        return _Pass(forward_index, forward, backward_index, backward, self.merit(forward, backward, poses))
+
+    def merit(self, forward: Selection, backward: Selection | None, poses: PoseBatch) -> FloatArray:
+        """sqrt of: psi_f + psi_b (estimated overlap), or the mean squared distance of the kept
+        pairs of both directions together (fixed overlap; the paper's RMS); divided by s when
+        errors are measured half-way between the frames (``symmetric``)."""
+        if self.config.overlap is None:
+            value = forward.merit + (backward.merit if backward is not None else 0.0)
+        elif backward is None:
+            value = forward.sum_sq / forward.kept
         else:
-            src_b, dst_b, back_kept = level.data[back_idx[keep_b]], level.model[keep_b], back_sq[keep_b]
-        return _Pairs(
-            np.concatenate((src_f, src_b)),
-            np.concatenate((dst_f, dst_b)),
-            fwd_kept,
-            back_kept,
-            fwd_sq.shape[0] + back_sq.shape[0],
+            value = (forward.sum_sq + backward.sum_sq) / (forward.kept + backward.kept)
+        if self.config.symmetric:
+            value = value / poses.scale
+        merit: FloatArray = np.sqrt(value)
+        return merit
+
+    def step(self, level: _Level, pairs: _Pass) -> tuple[PoseBatch, np.ndarray]:
+        """The closed-form similarity of each pose's kept pairs (Eq. 7) and which are valid."""
+        parts = [
+            PairPart(level.data, level.model[pairs.forward_index], pairs.forward.keep.astype(np.float64))
+        ]
+        if pairs.backward is not None and pairs.backward_index is not None:
+            parts.append(
+                PairPart(
+                    level.data[pairs.backward_index], level.model, pairs.backward.keep.astype(np.float64)
+                )
+            )
+        return estimate_similarities(
+            parts,
+            with_scale=self.with_scale,
+            scale_bounds=self.scale_bounds,
+            symmetric=self.config.symmetric,
+            origin=(level.data_mean, level.model_mean),
         )
 
+    def screen(self, level: _Level, hypotheses: list[Similarity]) -> Similarity:
+        """Iterate the hypotheses together with plain steps; the one with the lowest merit.
+
+        Hypotheses are dropped as soon as they cannot win, so the batch shrinks quickly:
+        one that stopped moving while another already does better (ICP's merit only falls);
+        one that has come to the same pose as a better one (the same basin); and, from the
+        :data:`_SCREEN_PRUNE_FROM`-th pass, one whose merit is :data:`_SCREEN_PRUNE_RATIO` times
+        the best's (measured: the eventual winner is within a few percent of the best from
+        the second pass on). Stops when one is left or after :data:`_SCREENING_ITERATIONS`.
+        """
+        poses = PoseBatch.of(hypotheses)
+        pairs = self.correspond(level, poses)
+        tolerance = self.config.criteria.coarse_relative_motion * self.model_radius
+        for iteration in range(1, _SCREENING_ITERATIONS):
+            merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
+            stepped, valid = self.step(level, pairs)
+            stepped = poses.where(~valid, stepped)
+            best = float(merit.min())
+            alive = merit < np.inf
+            alive &= (level.motion(poses, stepped) > tolerance) | (merit <= best)
+            if iteration >= _SCREEN_PRUNE_FROM:
+                alive &= merit <= _SCREEN_PRUNE_RATIO * best
+            alive &= ~_repeats_better(stepped, merit, level, tolerance)
+            if alive.sum() <= 1:
+                return stepped[int(np.argmin(np.where(alive, merit, np.inf)))]
+            poses = stepped.take(alive)
+            pairs = self.correspond(level, poses)
+        merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
+        return poses[int(np.argmin(merit))]
+
     def run_level(
-        self, index: int, level: _Level, sim: Similarity, *, final: bool, max_iterations: int | None = None
-    ) -> tuple[Similarity, LevelReport, _Pairs]:
-        """Iterate correspond -> solve on one level until the similarity stops moving."""
+        self, index: int, level: _Level, sim: Similarity, *, relative_motion: float
+    ) -> tuple[Similarity, LevelReport, _Pass]:
+        """Iterate correspond -> solve on one level until the similarity moves by less than
+        ``relative_motion`` times the model's radius (or the merit stops falling)."""
         criteria = self.config.criteria
-        max_iterations = max_iterations or criteria.max_iterations
-        tolerance = (
-            criteria.relative_motion if final else criteria.coarse_relative_motion
-        ) * self.model_radius
+        tolerance = relative_motion * self.model_radius
         accelerator = (
             AndersonAccelerator(sim, level.data_mean, self.model_radius) if self.config.acceleration else None
         )
-        pairs = self.correspond(level, sim)
-        rms = _rms(pairs.forward_sq, pairs.backward_sq)
+        pose = PoseBatch.of([sim])
+        pairs = self.correspond(level, pose)
+        merit = float(pairs.merit[0])
         converged = False
         iterations = 0
-        for iterations in range(1, max_iterations + 1):
-            self._record(index, iterations, pairs, rms)
-            try:
-                step = estimate_similarity(
-                    pairs.source, pairs.target, with_scale=self.with_scale, scale_bounds=self.scale_bounds
-                )
-            except ValueError:
+        for iterations in range(1, criteria.max_iterations + 1):
+            self._record(index, iterations, pairs)
+            stepped, valid = self.step(level, pairs)
+            if not valid[0]:
                 break  # degenerate pairs (e.g. a collapsed scale): keep the last valid similarity
-            if level.motion(sim, step) <= tolerance:
-                sim, converged = step, True
-                if final:  # report the errors of the returned similarity itself
-                    pairs = self.correspond(level, sim)
-                    rms = _rms(pairs.forward_sq, pairs.backward_sq)
+            if level.motion(pose, stepped)[0] <= tolerance:
+                # Converged. The step moved every point by less than the tolerance, so the errors
+                # of the last pass are the returned similarity's: no pass to re-measure them.
+                pose, converged = stepped, True
                 break
             # Extrapolate only once a level crawls: on levels that converge in a couple of
             # steps, a rejected proposal would cost a wasted correspondence pass.
             proposal = (
-                accelerator.propose(sim, step) if accelerator and iterations >= _ACCELERATE_FROM else None
+                accelerator.propose(pose[0], stepped[0])
+                if accelerator and iterations >= _ACCELERATE_FROM
+                else None
             )
-            if proposal is not None:
-                proposal_pairs = self.correspond(level, proposal)
-                proposal_rms = _rms(proposal_pairs.forward_sq, proposal_pairs.backward_sq)
-                if proposal_rms < rms:
-                    sim, pairs, rms = proposal, proposal_pairs, proposal_rms
+            if accelerator is not None and proposal is not None:
+                proposed = PoseBatch.of([proposal])
+                proposal_pairs = self.correspond(level, proposed)
+                if proposal_pairs.merit[0] < merit:
+                    pose, pairs, merit = proposed, proposal_pairs, float(proposal_pairs.merit[0])
                     continue
-                accelerator.reset()  # type: ignore[union-attr]  # overshot: take the plain (monotone) step
-            previous_rms = rms
-            sim = step
-            pairs = self.correspond(level, sim)
-            rms = _rms(pairs.forward_sq, pairs.backward_sq)
-            if previous_rms - rms <= criteria.relative_rmse * previous_rms:
+                accelerator.reset()  # extrapolation overshot: take the plain step
+            previous = merit
+            pose = stepped
+            pairs = self.correspond(level, pose)
+            merit = float(pairs.merit[0])
+            if previous - merit <= criteria.relative_rmse * previous:
                 converged = True
                 break
-        report = LevelReport(level.data.shape[0], level.model.shape[0], iterations, converged, rms)
-        return sim, report, pairs
+        report = LevelReport(level.data.shape[0], level.model.shape[0], iterations, converged, pairs.rms()[0])
+        return pose[0], report, pairs
 
-    def _record(self, level: int, iteration: int, pairs: _Pairs, rms: float) -> None:
+    def _record(self, level: int, iteration: int, pairs: _Pass) -> None:
+        both, forward, backward = pairs.rms()
         self.history.append(
-            IterationRecord(
-                level,
-                iteration,
-                rms,
-                _rms(pairs.forward_sq),
-                _rms(pairs.backward_sq),
-                time.perf_counter() - self.start,
-            )
+            IterationRecord(level, iteration, both, forward, backward, time.perf_counter() - self.start)
         )
-
-
-def _rms(*squared: FloatArray) -> float:
-    count = sum(s.shape[0] for s in squared)
-    if count == 0:
-        return float("nan")
-    return float(np.sqrt(sum(float(s.sum()) for s in squared) / count))
-
-
-def _initial_guesses(
-    data: FloatArray, model: FloatArray, config: RegistrationConfig, scale_bounds: tuple[float, float] | None
-) -> list[Similarity]:
-    if config.initial is not None:
-        if config.initial.dim != data.shape[1]:
-            raise ValueError(
-                f"initial similarity is {config.initial.dim}-D but the points are {data.shape[1]}-D"
-            )
-        guesses = [config.initial]
-    elif config.initialization is Initialization.IDENTITY:
-        guesses = [Similarity.identity(data.shape[1])]
-    else:
-        guesses = moment_guesses(
-            data, model, principal_axes=config.initialization is Initialization.PRINCIPAL_AXES
-        )
-        if config.method is Method.ICP:
-            guesses = [
-                Similarity(1.0, g.rotation, model.mean(axis=0) - g.rotation @ data.mean(axis=0))
-                for g in guesses
-            ]
-    if scale_bounds is not None:
-        # Du's method must start inside its bounds: from outside, the first clipped step can raise
-        # the error, which the loop would take for convergence after one iteration.
-        guesses = [
-            Similarity(float(np.clip(g.scale, *scale_bounds)), g.rotation, g.translation) for g in guesses
-        ]
-    return guesses
 
 
 def register(
@@ -257,9 +319,10 @@ def register(
     """Find the similarity T with model ≈ T(data) = s R data + t.
 
     ``data`` (N, m) and ``model`` (M, m) are point sets in any dimension m >= 2; no
-    correspondences are needed. ``config`` defaults to ``RegistrationConfig()``;
-    ``RegistrationConfig.paper()`` runs the published algorithm exactly. Raises ``ValueError``
-    on unusable input (see :func:`as_point_set`).
+    correspondences are needed, and they may overlap only partly, in either direction.
+    ``config`` defaults to ``RegistrationConfig()``; ``RegistrationConfig.paper()`` runs the
+    published algorithm exactly. Raises ``ValueError`` on unusable input (see
+    :func:`as_point_set`). The result carries a plausibility verdict (``reliable``, ``reason``).
 
     A warm start (``config.initial``) whose result fails the plausibility verdict is retried
     cold: a poisoned start must not turn later good pairs into wrong answers.
@@ -289,49 +352,42 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
     scale_bounds = (
         covariance_scale_bounds(data_set, model_set) if config.method is Method.BOUNDED_ICP else None
     )
-    solver = _Solver(config, scale_bounds, rms_radius(model_set), start)
+    model_radius = rms_radius(model_set)
+    solver = _Solver(config, scale_bounds, model_radius, start)
     bidirectional = config.method is Method.FRISICP
     last = len(pyramid) - 1
 
     coarsest = _Level.build(*pyramid[0], bidirectional, config.backend)
-    guesses = _initial_guesses(data_set, model_set, config, scale_bounds)
-    if len(guesses) > 1:
-        # Screen the hypotheses with a short plain run each on the coarsest level; only the best
-        # one is iterated on. (A smaller screening subset was tried: on noisy data its errors no
-        # longer told a pose from its 180-degree flip; see test_noisy_resampled_cold_starts.)
-        screener = _Solver(replace(config, acceleration=False), scale_bounds, solver.model_radius, start)
-        screened = [
-            screener.run_level(0, coarsest, g, final=False, max_iterations=_SCREENING_ITERATIONS)
-            for g in guesses
-        ]
-        guesses = [min(screened, key=lambda outcome: outcome[1].rms)[0]]
-    sim, report, pairs = solver.run_level(0, coarsest, guesses[0], final=last == 0)
+    hypotheses = initial_hypotheses(data_set, model_set, config, scale_bounds)
+    sim = hypotheses[0] if len(hypotheses) == 1 else solver.screen(coarsest, hypotheses)
+    sim, report, pairs = solver.run_level(0, coarsest, sim, relative_motion=_level_motion(config, 0, last))
     reports = [report]
     for index in range(1, last + 1):
         level = _Level.build(*pyramid[index], bidirectional, config.backend)
-        sim, report, pairs = solver.run_level(index, level, sim, final=index == last)
+        sim, report, pairs = solver.run_level(
+            index, level, sim, relative_motion=_level_motion(config, index, last)
+        )
         reports.append(report)
 
-    forward_total = pairs.total - (model_set.shape[0] if bidirectional else 0)
-    overlap_forward = pairs.forward_sq.shape[0] / max(forward_total, 1)
-    overlap_backward = (
-        pairs.backward_sq.shape[0] / max(pairs.total - forward_total, 1) if bidirectional else 1.0
-    )
+    rms, forward_rms, backward_rms = pairs.rms()
+    overlap_forward = float(pairs.forward.fraction[0])
+    overlap_backward = float(pairs.backward.fraction[0]) if pairs.backward is not None else float("nan")
+    kept = pairs.forward.kept[0] + (pairs.backward.kept[0] if pairs.backward is not None else 0.0)
     verdict = judge(
         sim,
         converged=reports[-1].converged,
-        rms=_rms(pairs.forward_sq, pairs.backward_sq),
+        rms=rms,
         overlap_forward=overlap_forward,
         overlap_backward=overlap_backward,
-        moment_scale=rms_radius(model_set) / rms_radius(data_set),
-        model_radius=solver.model_radius,
+        moment_scale=radius_ratio(data_set, model_set),
+        model_radius=model_radius,
     )
     return RegistrationResult(
         similarity=sim,
-        rms=_rms(pairs.forward_sq, pairs.backward_sq),
-        forward_rms=_rms(pairs.forward_sq),
-        backward_rms=_rms(pairs.backward_sq) if bidirectional else float("nan"),
-        fitness=(pairs.forward_sq.shape[0] + pairs.backward_sq.shape[0]) / pairs.total,
+        rms=rms,
+        forward_rms=forward_rms,
+        backward_rms=backward_rms,
+        fitness=float(kept) / (data_set.shape[0] + (model_set.shape[0] if bidirectional else 0)),
         converged=reports[-1].converged,
         levels=tuple(reports),
         history=tuple(solver.history),

@@ -46,8 +46,9 @@ def judge(
 ) -> Verdict:
     """The verdict on one result; ``moment_scale`` = model RMS radius / data RMS radius."""
     problems = []
-    values = (similarity.scale, rms, overlap_forward, overlap_backward)
-    if not all(math.isfinite(v) for v in values):
+    # Forward-only methods measure no backward overlap (NaN): it is then not judged.
+    overlaps = [v for v in (overlap_forward, overlap_backward) if not math.isnan(v)]
+    if not all(math.isfinite(v) for v in (similarity.scale, rms, *overlaps)) or not overlaps:
         problems.append("the estimate is not finite")
     else:
         if not converged:
@@ -58,9 +59,9 @@ def judge(
                 f"scale {similarity.scale:.3g} is {ratio:.3g}x the clouds' size ratio {moment_scale:.3g}"
                 f" (plausible: within {SCALE_RANGE:g}x)"
             )
-        smallest = min(overlap_forward, overlap_backward)
+        smallest = min(overlaps)
         if smallest < MIN_OVERLAP:
-            side = "data" if overlap_forward <= overlap_backward else "model"
+            side = "data" if smallest == overlap_forward else "model"
             problems.append(f"only {smallest:.1%} of the {side} points overlap (need {MIN_OVERLAP:.0%})")
         if rms > MAX_RELATIVE_RMS * model_radius:
             problems.append(

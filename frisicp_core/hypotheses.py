@@ -1,0 +1,110 @@
+"""Where the iterations may start: the initial hypotheses that ``register`` screens.
+
+ICP only finds the nearest local minimum, so a cold start tries several poses and keeps the
+one whose short run on the coarsest level reaches the lowest error. The candidates
+(``RegistrationConfig.initialization``):
+
+- *moments*: centroids aligned, scale = ratio of the RMS radii, R = I. Right for full overlap
+  with the frames roughly aligned.
+- *principal axes*: the same centroid and scale, R mapping the data's principal axes onto the
+  model's, one hypothesis per sign pattern with det R = +1 (the moments leave the axes' signs
+  open). Right for full overlap at any rotation.
+- *in place* (``search``): the data left where it is (R = I, its centroid fixed) at the scales
+  ``ratio * 2^k``, k in :data:`IN_PLACE_OCTAVES`. With partial overlap centroids and radii
+  mislead: a scan's centroid is not its map's, and its radius is that of the part it saw. Frames
+  that are roughly aligned (a scan in a map, two sensors, the usual robotics case) are not.
+"""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from .config import Initialization, Method, RegistrationConfig
+from .similarity import FloatArray, Similarity
+
+# Scales of the in-place hypotheses, in octaves around the RMS-radius ratio: a part of a surface
+# has an RMS radius between about a quarter and all of the whole's, so the ratio misses the true
+# scale by up to a factor of a few in either direction (scan onto map, map onto scan).
+IN_PLACE_OCTAVES = (-1.0, -0.5, 0.0, 0.5, 1.0)
+
+
+def principal_axes(points: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
+    """Centroid, covariance eigenvalues (descending) and eigenvectors (columns, same order)."""
+    centroid = points.mean(axis=0)
+    centred = points - centroid
+    eigval, eigvec = np.linalg.eigh(centred.T @ centred / points.shape[0])
+    return centroid, eigval[::-1], eigvec[:, ::-1]
+
+
+def radius_ratio(data: FloatArray, model: FloatArray) -> float:
+    """Model RMS radius over data RMS radius: the scale if the two sets overlap fully."""
+    spread_data = float(((data - data.mean(axis=0)) ** 2).sum(axis=1).mean())
+    spread_model = float(((model - model.mean(axis=0)) ** 2).sum(axis=1).mean())
+    return float(np.sqrt(spread_model / spread_data))
+
+
+def initial_hypotheses(
+    data: FloatArray,
+    model: FloatArray,
+    config: RegistrationConfig,
+    scale_bounds: tuple[float, float] | None,
+) -> list[Similarity]:
+    """The starting poses for ``config`` (one for a warm start or a single-pose initialization)."""
+    dim = data.shape[1]
+    if config.initial is not None:
+        if config.initial.dim != dim:
+            raise ValueError(f"initial similarity is {config.initial.dim}-D but the points are {dim}-D")
+        guesses = [config.initial]
+    elif config.initialization is Initialization.IDENTITY:
+        guesses = [Similarity.identity(dim)]
+    else:
+        ratio = radius_ratio(data, model)
+        rotations = [np.eye(dim)]
+        if config.initialization in (Initialization.PRINCIPAL_AXES, Initialization.SEARCH):
+            rotations += _principal_axes_rotations(data, model)
+        mu_d, mu_m = data.mean(axis=0), model.mean(axis=0)
+        scale = 1.0 if config.method is Method.ICP else ratio
+        guesses = [Similarity(scale, rot, mu_m - scale * rot @ mu_d) for rot in rotations]
+        if config.initialization is Initialization.SEARCH:
+            scales = [1.0] if config.method is Method.ICP else [ratio * 2.0**k for k in IN_PLACE_OCTAVES]
+            guesses += [Similarity(s, np.eye(dim), mu_d - s * mu_d) for s in scales]
+    if scale_bounds is not None:
+        # Du's method must start inside its bounds: from outside, the first clipped step can raise
+        # the error, which the loop would take for convergence after one iteration.
+        guesses = [
+            Similarity(float(np.clip(g.scale, *scale_bounds)), g.rotation, g.translation) for g in guesses
+        ]
+    return guesses
+
+
+def _principal_axes_rotations(data: FloatArray, model: FloatArray) -> list[FloatArray]:
+    """The 2^(m-1) proper rotations mapping the data's principal axes onto the model's."""
+    _, _, vec_d = principal_axes(data)
+    _, _, vec_m = principal_axes(model)
+    dim = data.shape[1]
+    rotations = []
+    for signs in itertools.product((1.0, -1.0), repeat=dim - 1):
+        flip = np.array((*signs, 1.0))
+        rotation = (vec_m * flip) @ vec_d.T
+        if np.linalg.det(rotation) < 0:
+            flip[-1] = -1.0
+            rotation = (vec_m * flip) @ vec_d.T
+        rotations.append(rotation)
+    return rotations
+
+
+def covariance_scale_bounds(data: FloatArray, model: FloatArray) -> tuple[float, float]:
+    """Scale interval for Du et al.'s bounded-scale ICP, from the covariance eigenvalues.
+
+    With eigenvalues lambda of the data (A) and model (B) covariances, any similarity
+    B = s R A + t satisfies lambda_B = s^2 lambda_A axis by axis, so
+    ``sqrt(min lambda_B / max lambda_A) <= s <= sqrt(max lambda_B / min lambda_A)``.
+    """
+    _, val_d, _ = principal_axes(data)
+    _, val_m, _ = principal_axes(model)
+    floor = np.finfo(float).tiny
+    low = float(np.sqrt(max(val_m[-1], floor) / max(val_d[0], floor)))
+    high = float(np.sqrt(max(val_m[0], floor) / max(val_d[-1], floor)))
+    return low, high
