@@ -23,7 +23,9 @@ setup(
     install_requires=[
         "numpy>=1.24",
         "scipy>=1.10",
-        "pykdtree>=1.3",  # 2x faster 1-NN than scipy's cKDTree here; cKDTree remains the fallback
+        # Fastest exact 1-NN measured on our workload (docs/nn_backends.md: ~1.8x scipy's cKDTree,
+        # nanoflann bindings within 10 %); cKDTree remains the fallback.
+        "pykdtree>=1.3",
         "plyfile>=1.0",  # PLY (ASCII and binary) reading for the CLI
         "pypcd4>=1.1",  # PCD (ascii, binary, binary_compressed) reading for the CLI
         "rosbags>=0.10",  # offline bag mode, no ROS installation needed
@@ -38,7 +40,18 @@ setup(
             "colcon-common-extensions",
             "pillow>=9",
         ],
-        "bench": ["matplotlib>=3.6", "pillow>=9"],
+        "bench": ["matplotlib>=3.6", "pillow>=9", "threadpoolctl>=3"],
+        # The other 1-NN libraries that benchmarks/nn_backends.py compares (it skips missing ones).
+        # Never a runtime dependency: none was clearly faster than pykdtree (docs/nn_backends.md).
+        "nn-bench": [
+            "threadpoolctl>=3",
+            "small-gicp>=1.0",
+            "pynanoflann>=0.10",
+            "napf>=0.1",
+            "scikit-learn>=1.3",
+            "faiss-cpu>=1.8",
+            "kiss-icp>=1.0",
+        ],
         # Only for comparing with Open3D in `frisicp bench` (about 900 MB; its wheel also needs
         # the system library libusb-1.0). Never a runtime or test dependency.
         "open3d": ["open3d>=0.18"],

@@ -1,7 +1,11 @@
 """Nearest-neighbour search: one KD-tree per point set and level, queried in parallel.
 
-pykdtree (OpenMP, about 2x faster than scipy's cKDTree for 1-NN on this kind of data) is used when
-installed; scipy's cKDTree with ``workers=-1`` is the fallback.
+pykdtree (OpenMP) is used when installed; scipy's cKDTree with ``workers=-1`` is the fallback.
+``benchmarks/nn_backends.py`` (results in docs/nn_backends.md) measured the alternatives on
+this package's workload: nanoflann's bindings (pynanoflann, napf) answer far-off queries
+somewhat faster, but ``register`` as a whole was within 0.9-1.12x of pykdtree with any of them,
+small_gicp's KdTree and scikit-learn's KDTree were slower, scipy's cKDTree about 0.55x, faiss is
+brute force and KISS-ICP's voxel hash is approximate. So pykdtree stays.
 """
 
 from __future__ import annotations
@@ -17,17 +21,26 @@ except ImportError:  # pragma: no cover
 
 from scipy.spatial import cKDTree
 
+# The backend names, once: option lists (RegistrationConfig, node parameters, CLI) derive from it.
+# "auto" = the first installed of the others, in this order.
+BACKENDS = ("auto", "pykdtree", "scipy")
+
+
+def available_backends() -> tuple[str, ...]:
+    """The concrete backends that can run here, fastest first (what ``auto`` picks is the first)."""
+    return tuple(name for name in BACKENDS[1:] if name != "pykdtree" or _PyKDTree is not None)
+
 
 class NearestNeighbors:
     """A KD-tree over fixed points; ``query`` returns (squared distances, indices)."""
 
     def __init__(self, points: FloatArray, backend: str = "auto") -> None:
-        if backend not in ("auto", "pykdtree", "scipy"):
-            raise ValueError(f"unknown nearest-neighbour backend {backend!r}")
-        if backend == "pykdtree" and _PyKDTree is None:
-            raise ValueError("backend 'pykdtree' requested but pykdtree is not installed")
+        if backend not in BACKENDS:
+            raise ValueError(f"unknown nearest-neighbour backend {backend!r}; choose one of {BACKENDS}")
+        if backend != "auto" and backend not in available_backends():
+            raise ValueError(f"backend {backend!r} requested but it is not installed")
         self.points = np.ascontiguousarray(points, dtype=np.float64)
-        self.backend = "pykdtree" if backend != "scipy" and _PyKDTree is not None else "scipy"
+        self.backend = available_backends()[0] if backend == "auto" else backend
         if self.backend == "pykdtree":
             self._tree = _PyKDTree(self.points, leafsize=16)
         else:
@@ -40,7 +53,7 @@ class NearestNeighbors:
             dist_sq, idx = self._tree.query(q, k=1, sqr_dists=True)
             return np.asarray(dist_sq, dtype=np.float64), idx.astype(np.int64)
         dist, idx = self._tree.query(q, k=1, workers=-1)
-        return dist * dist, idx
+        return dist * dist, idx.astype(np.int64, copy=False)
 
 
 def nearest(points: FloatArray, queries: FloatArray, backend: str = "auto") -> tuple[FloatArray, np.ndarray]:
