@@ -315,8 +315,9 @@ def _spread_bits(v: np.ndarray, dim: int) -> np.ndarray:
 
 def morton_order(points: np.ndarray, bits: int = 10) -> np.ndarray:
     """Permutation that puts points in Z-order (Morton order) on a 2^bits grid over their box."""
-    low = points.min(axis=0)
-    span = float((points.max(axis=0) - low).max()) or 1.0
+    columns = range(points.shape[1])  # column-wise: a.min(axis=0) is slow on (n, 3) arrays
+    low = np.array([points[:, k].min() for k in columns])
+    span = float(max(points[:, k].max() - low[k] for k in columns)) or 1.0
     cells = np.minimum(((points - low) * ((1 << bits) / span)).astype(np.int64), (1 << bits) - 1)
     dim = points.shape[1]
     code = np.zeros(points.shape[0], dtype=np.uint64)
@@ -667,7 +668,6 @@ def register_cases() -> list[tuple[str, np.ndarray, np.ndarray, RegistrationConf
     data = truth.inverse().apply(downsample(bumpy_surface(100_000, seed=1), 20_000, rng))
     data += rng.normal(scale=0.002, size=data.shape)
     near = Similarity(1.3 * 1.01, truth.rotation @ rotation((1.0, 0.2, 0.1), 2.0), truth.translation + 0.02)
-    data_z, model_z = data[morton_order(data)], model[morton_order(model)]
     # Lidar-like: a second scan 1.5 m away and yawed 3 degrees, in its own sensor frame.
     scan_pose = Similarity(1.0, rotation((0.0, 0.0, 1.0), 3.0), np.array([1.5, 0.4, 0.0]))
     scan_model = downsample(lidar_scan(100_000, np.array([0.0, 0.0, 1.8]), 0.0, seed=1), 20_000, rng)
@@ -679,8 +679,6 @@ def register_cases() -> list[tuple[str, np.ndarray, np.ndarray, RegistrationConf
     cases = [
         ("node 20k cold", data, model, RegistrationConfig()),
         ("node 20k warm", data, model, RegistrationConfig(initial=near)),
-        ("node 20k cold, inputs Morton-ordered", data_z, model_z, RegistrationConfig()),
-        ("node 20k warm, inputs Morton-ordered", data_z, model_z, RegistrationConfig(initial=near)),
         ("lidar 20k warm", scan_data, scan_model, RegistrationConfig(initial=scan_near)),
     ]
     if BUNNY.exists():
@@ -692,31 +690,60 @@ def register_cases() -> list[tuple[str, np.ndarray, np.ndarray, RegistrationConf
     return cases
 
 
+@contextlib.contextmanager
+def morton_levels(enabled: bool = True):
+    """register with every level's data and model put in Morton order before its trees are built.
+
+    The level's point sets are the same (only their order changes), so the iterations are the
+    same up to rounding; the queries of every iteration then come in a spatially coherent order.
+    The sorting is included in the time.
+    """
+    original = registration_module._Level.__dict__["build"]
+    if not enabled:
+        yield
+        return
+
+    def build(cls, data, model, bidirectional, backend):
+        return original.__func__(
+            cls, data[morton_order(data)], model[morton_order(model)], bidirectional, backend
+        )
+
+    registration_module._Level.build = classmethod(build)
+    try:
+        yield
+    finally:
+        registration_module._Level.build = original
+
+
+MORTON = ", levels Morton-ordered"
+
+
 def bench_register(cands: list[Candidate], repeats: int) -> list[dict]:
-    exact = [c for c in cands if c.exact or c.name == "pykdtree-f32"]
-    exact = [c for c in exact if not c.name.startswith("faiss")]
+    exact = [c for c in cands if (c.exact or c.name == "pykdtree-f32") and not c.name.startswith("faiss")]
+    variants = [(c.name, c, False) for c in exact]
+    variants += [(c.name + MORTON, c, True) for c in exact if c.name in ("pykdtree", "pynanoflann")]
     rows = []
     for label, data, model, config in register_cases():
-        times: dict[str, list[float]] = {c.name: [] for c in exact}
+        times: dict[str, list[float]] = {name: [] for name, _, _ in variants}
         results = {}
         for rep in range(repeats):
-            shift = rep % len(exact)
-            for cand in exact[shift:] + exact[:shift]:
+            shift = rep % len(variants)
+            for name, cand, morton in variants[shift:] + variants[:shift]:
                 patched = type("Patched", (_Patched,), {"candidate": cand})
-                with nn_class(patched):
+                with nn_class(patched), morton_levels(morton):
                     t, result = timed(
                         lambda data=data, model=model, config=config: register(data, model, config)
                     )
-                times[cand.name].append(t)
-                results[cand.name] = result
+                times[name].append(t)
+                results[name] = result
         base = statistics.median(times["pykdtree"])
-        for cand in exact:
-            med = statistics.median(times[cand.name])
-            res = results[cand.name]
+        for name, _, _ in variants:
+            med = statistics.median(times[name])
+            res = results[name]
             rows.append(
                 dict(
                     case=label,
-                    candidate=cand.name,
+                    candidate=name,
                     ms=med * 1e3,
                     ratio=base / med,
                     iterations=list(res.iterations),
@@ -768,11 +795,16 @@ class _Timing(NearestNeighbors):
 
 def bench_split(repeats: int) -> list[dict]:
     rows = []
-    for label, data, model, config in register_cases():
+    cases = [
+        (label + suffix, data, model, config, bool(suffix))
+        for label, data, model, config in register_cases()
+        for suffix in ("", MORTON)
+    ]
+    for label, data, model, config, morton in cases:
         samples = []
         for _ in range(repeats):
             _Timing.reset()
-            with nn_class(_Timing):
+            with nn_class(_Timing), morton_levels(morton):
                 t, result = timed(lambda data=data, model=model, config=config: register(data, model, config))
             samples.append(
                 dict(
