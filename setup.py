@@ -23,8 +23,8 @@ setup(
     install_requires=[
         "numpy>=1.24",
         "scipy>=1.10",
-        # Fastest exact 1-NN measured on our workload (docs/nn_backends.md: ~1.8x scipy's cKDTree,
-        # nanoflann bindings within 10 %); cKDTree remains the fallback.
+        # Kept after measuring the alternatives (docs/nn_backends.md): ~1.7x scipy's cKDTree in
+        # register; nanoflann bindings 0.99-1.26x of it, not worth a dependency. cKDTree is the fallback.
         "pykdtree>=1.3",
         "plyfile>=1.0",  # PLY (ASCII and binary) reading for the CLI
         "pypcd4>=1.1",  # PCD (ascii, binary, binary_compressed) reading for the CLI

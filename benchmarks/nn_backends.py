@@ -1128,7 +1128,7 @@ def main() -> int:
 
     if "register" in sections:
         with threadpool_limits(limits=1):
-            rows = bench_register(cands, max(3, args.repeats // 2))
+            rows = bench_register(cands, args.repeats)
         report["register"] = rows
         table(
             "register() with each backend, 1 thread (process CPU time, medians); "

@@ -1,12 +1,13 @@
 """Nearest-neighbour search: one KD-tree per point set and level, queried in parallel.
 
 pykdtree (OpenMP) is used when installed; scipy's cKDTree with ``workers=-1`` is the fallback.
-``benchmarks/nn_backends.py`` (results in docs/nn_backends.md) measured the alternatives on
-this package's workload: nanoflann's bindings (pynanoflann, napf) answer far-off queries
-somewhat faster, but ``register`` as a whole was within 0.9-1.12x of pykdtree with any of them,
-small_gicp's KdTree and scikit-learn's KDTree were slower, scipy's cKDTree about 0.55x, faiss is
-brute force and KISS-ICP's voxel hash is approximate. So pykdtree stays.
-"""
+``benchmarks/nn_backends.py`` (results in docs/nn_backends.md) measured the alternatives on this
+package's workload. nanoflann's bindings (pynanoflann, napf) answer queries, especially far-off
+ones, 1.1-1.5x faster, but build 2-3x slower: ``register`` on the node's 20k clouds was
+0.99-1.26x of pykdtree with them; pynanoflann has no aarch64 or Python 3.13 wheels, napf no
+3.13 wheels and a single release. small_gicp's
+KdTree was 0.83-1.2x, scikit-learn's about 0.35x and this cKDTree about 0.6x; faiss is brute
+force and KISS-ICP's voxel hash approximate. So pykdtree stays."""
 
 from __future__ import annotations
 
