@@ -34,7 +34,9 @@ setup(
     install_requires=[
         "numpy>=1.24",
         "scipy>=1.10",
-        "pykdtree>=1.3",  # 2x faster 1-NN than scipy's cKDTree here; cKDTree remains the fallback
+        # Kept after measuring the alternatives (docs/nn_backends.md): ~1.7x scipy's cKDTree in
+        # register; nanoflann bindings 0.99-1.26x of it, not worth a dependency. cKDTree is the fallback.
+        "pykdtree>=1.3",
         "plyfile>=1.0",  # PLY (ASCII and binary) reading for the CLI
         "pypcd4>=1.1",  # PCD (ascii, binary, binary_compressed) reading for the CLI
         "rosbags>=0.10",  # offline bag mode, no ROS installation needed
@@ -49,7 +51,18 @@ setup(
             "colcon-common-extensions",
             "pillow>=9",
         ],
-        "bench": ["matplotlib>=3.6", "pillow>=9"],
+        "bench": ["matplotlib>=3.6", "pillow>=9", "threadpoolctl>=3"],
+        # The other 1-NN libraries that benchmarks/nn_backends.py compares (it skips missing ones).
+        # Never a runtime dependency: none was clearly faster than pykdtree (docs/nn_backends.md).
+        "nn-bench": [
+            "threadpoolctl>=3",
+            "small-gicp>=1.0",
+            "pynanoflann>=0.10",
+            "napf>=0.1",
+            "scikit-learn>=1.3",
+            "faiss-cpu>=1.8",
+            "kiss-icp>=1.0",
+        ],
         # `make lint`; pinned, since new releases add rules and change formatting.
         "lint": ["ruff==0.17.6", "mypy==2.4.1"],
         # Only for comparing with Open3D in `frisicp bench` (about 900 MB; its wheel also needs

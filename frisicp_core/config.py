@@ -116,12 +116,15 @@ class RegistrationConfig:
             self.max_distance is None or self.max_distance > 0,
             f"max_distance must be positive or None, got {self.max_distance}",
         )
-        _require(self.backend in BACKENDS, f"unknown backend {self.backend!r}")
+        _require(self.backend in BACKENDS, f"unknown backend {self.backend!r}; choose one of {BACKENDS}")
         _require(self.initial is None or isinstance(self.initial, Similarity), "initial must be a Similarity")
 
     @classmethod
     def paper(cls, method: Method | str = Method.FRISICP, **overrides: object) -> RegistrationConfig:
-        """The published algorithm: identity start, no trimming, gating or acceleration; baselines single-level."""
+        """The published algorithm: identity start, no trimming, gating or acceleration.
+
+        The baselines (ICP and its scaled variants) run single-level, as in the paper.
+        """
         method = Method(method)
         settings: dict[str, object] = {
             "method": method,

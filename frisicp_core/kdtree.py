@@ -1,8 +1,13 @@
 """Nearest-neighbour search: one KD-tree per point set and level, queried in parallel.
 
-pykdtree (OpenMP, about 2x faster than scipy's cKDTree for 1-NN on this kind of data) is used when
-installed; scipy's cKDTree with ``workers=-1`` is the fallback.
-"""
+pykdtree (OpenMP) is used when installed; scipy's cKDTree with ``workers=-1`` is the fallback.
+``benchmarks/nn_backends.py`` (results in docs/nn_backends.md) measured the alternatives on this
+package's workload. nanoflann's bindings (pynanoflann, napf) answer queries, especially far-off
+ones, 1.1-1.5x faster, but build 2-3x slower: ``register`` on the node's 20k clouds was
+0.99-1.26x of pykdtree with them; pynanoflann has no aarch64 or Python 3.13 wheels, napf no
+3.13 wheels and a single release. small_gicp's
+KdTree was 0.83-1.2x, scikit-learn's about 0.35x and this cKDTree about 0.6x; faiss is brute
+force and KISS-ICP's voxel hash approximate. So pykdtree stays."""
 
 from __future__ import annotations
 
@@ -19,9 +24,14 @@ except ImportError:  # pragma: no cover
 
 from scipy.spatial import cKDTree
 
-# The KD-tree libraries a configuration can ask for ("auto": pykdtree when installed, else scipy).
-# Every list of backends (options, parameter descriptors, CLI choices) is derived from this one.
+# The backend names, once: option lists (RegistrationConfig, node parameters, CLI) derive from it.
+# "auto" = the first installed of the others, in this order.
 BACKENDS: tuple[str, ...] = ("auto", "pykdtree", "scipy")
+
+
+def available_backends() -> tuple[str, ...]:
+    """The concrete backends that can run here, fastest first (what ``auto`` picks is the first)."""
+    return tuple(name for name in BACKENDS[1:] if name != "pykdtree" or _PyKDTree is not None)
 
 
 class NearestNeighbors:
@@ -29,11 +39,11 @@ class NearestNeighbors:
 
     def __init__(self, points: FloatArray, backend: str = "auto") -> None:
         if backend not in BACKENDS:
-            raise ValueError(f"unknown nearest-neighbour backend {backend!r}")
-        if backend == "pykdtree" and _PyKDTree is None:
-            raise ValueError("backend 'pykdtree' requested but pykdtree is not installed")
+            raise ValueError(f"unknown nearest-neighbour backend {backend!r}; choose one of {BACKENDS}")
+        if backend != "auto" and backend not in available_backends():
+            raise ValueError(f"backend {backend!r} requested but it is not installed")
         self.points = np.ascontiguousarray(points, dtype=np.float64)
-        self.backend = "pykdtree" if backend != "scipy" and _PyKDTree is not None else "scipy"
+        self.backend = available_backends()[0] if backend == "auto" else backend
         self._tree: Any  # pykdtree's KDTree or scipy's cKDTree; their query signatures differ
         if self.backend == "pykdtree":
             self._tree = _PyKDTree(self.points, leafsize=16)
@@ -47,7 +57,7 @@ class NearestNeighbors:
             dist_sq, idx = self._tree.query(q, k=1, sqr_dists=True)
             return np.asarray(dist_sq, dtype=np.float64), idx.astype(np.int64)
         dist, idx = self._tree.query(q, k=1, workers=-1)
-        return dist * dist, idx
+        return dist * dist, idx.astype(np.int64, copy=False)
 
     def spacing(self, sample: int) -> float:
         """Median distance from a stored point to its nearest *other* stored point.
