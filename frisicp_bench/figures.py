@@ -25,7 +25,7 @@ from .tables import ordered_methods
 
 COLOURS = {
     "frisicp": "tab:red",
-    "frisicp-robust": "tab:orange",
+    "frisicp-default": "tab:orange",
     "icp": "tab:blue",
     "scale-icp": "tab:green",
     "bounded-icp": "tab:purple",

@@ -80,7 +80,9 @@ class SpeedComparison:
         return faster and self.frisicp_success >= self.baseline_success
 
 
-def contender(run: BenchmarkRun, family: str, variants: Sequence[str] = ("frisicp", "frisicp-robust")) -> str:
+def contender(
+    run: BenchmarkRun, family: str, variants: Sequence[str] = ("frisicp", "frisicp-default")
+) -> str:
     """The FRISICP configuration to time against the baselines on a family: the one with the
     highest success rate there (the paper's settings on a tie), so a speed ratio never pits a
     failing configuration against a failing baseline when a working one exists."""

@@ -137,14 +137,6 @@ class RegistrationConfig:
         settings.update(overrides)
         return cls(**settings)  # type: ignore[arg-type]
 
-    @classmethod
-    def robust(cls, **overrides: object) -> RegistrationConfig:
-        """The old preset for partial overlap; the default now estimates the overlap itself.
-
-        Kept so existing code runs: it is ``RegistrationConfig(**overrides)``.
-        """
-        return cls(**overrides)  # type: ignore[arg-type]
-
 
 def _require(condition: bool, message: str) -> None:
     if not condition:

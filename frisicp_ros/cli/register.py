@@ -22,13 +22,7 @@ DESCRIPTION = "Find s, R, t with MODEL ≈ s·R·DATA + t and print them."
 def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("data", help="point cloud to move")
     parser.add_argument("model", help="point cloud that stays fixed")
-    presets = parser.add_mutually_exclusive_group()
-    presets.add_argument(
-        "--robust",
-        action="store_true",
-        help="preset for partial overlap (RegistrationConfig.robust(): 80%% trimming)",
-    )
-    presets.add_argument(
+    parser.add_argument(
         "--paper",
         action="store_true",
         help="run the published algorithm exactly (RegistrationConfig.paper(): identity start, no "
@@ -45,16 +39,10 @@ def config_from_args(args: argparse.Namespace) -> RegistrationConfig:
     silently changed, nor an option silently ignored.
     """
     given = given_values(args, Surface.REGISTER)
-    if args.paper:
-        preset, base = (
-            "--paper",
-            RegistrationConfig.paper(str(given.get("method", RegistrationConfig().method.value))),
-        )
-    elif args.robust:
-        preset, base = "--robust", RegistrationConfig.robust()
-    else:
+    if not args.paper:
         return registration_config(given)
-    check_preset(preset, base, given)
+    base = RegistrationConfig.paper(str(given.get("method", RegistrationConfig().method.value)))
+    check_preset("--paper", base, given)
     return registration_config(given, base)
 
 
@@ -91,7 +79,11 @@ def run(args: argparse.Namespace) -> int:
     print(
         f"rms          {result.rms:.6g}  (forward {result.forward_rms:.6g}, backward {result.backward_rms:.6g})"
     )
+    print(
+        f"overlap      {result.overlap_forward:.1%} of the data, {result.overlap_backward:.1%} of the model"
+    )
     print(f"iterations   {sum(result.iterations)}  per level {list(result.iterations)}")
     print(f"converged    {result.converged}")
+    print(f"reliable     {result.reliable}" + (f"  ({result.reason})" if result.reason else ""))
     print(f"seconds      {result.seconds:.4f}")
     return 0 if result.converged else 1

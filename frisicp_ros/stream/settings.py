@@ -289,9 +289,17 @@ OPTIONS: tuple[Option, ...] = (
     ),
     core_option(
         "overlap",
-        "fraction (0, 1] of each cloud expected to have a counterpart: only that share of the"
-        " closest correspondences is used (trimming); 1 = all",
+        "share (0, 1] of each cloud's points that have a counterpart in the other: only that share"
+        " of the closest correspondences is used (trimming); 1 = all; 0 = estimated from the data,"
+        " separately per direction and iteration (scan in map, map in scan, two scans)",
+        kind=float,
+        zero_means="estimated",
         bounds=(0.0, 1.0),
+    ),
+    core_option(
+        "symmetric",
+        "symmetric scale: errors measured half-way between the two frames, so data onto model and"
+        " model onto data are the same problem; false = the paper's scale (errors in the model frame)",
     ),
     core_option(
         "max_distance",
@@ -302,7 +310,8 @@ OPTIONS: tuple[Option, ...] = (
     ),
     core_option(
         "initialization",
-        "starting guess when there is no warm start: identity, moments, principal-axes",
+        "cold start: identity, moments, principal-axes, or search (principal axes plus the data in"
+        " place at several scales: partial overlap in roughly aligned frames)",
         flags=("--init", "--initialization"),
     ),
     core_option(

@@ -112,16 +112,15 @@ def test_a_preset_and_an_option_that_disagree_are_refused_never_ignored(tmp_path
     np.save(tmp_path / "model.npy", MODEL)
     files = (str(tmp_path / "data.npy"), str(tmp_path / "model.npy"))
     for extra, message in (
-        (["--robust", "--overlap", "0.9"], "--overlap 0.9 conflicts with --robust, which sets overlap 0.8"),
+        (["--paper", "--overlap", "0.9"], "--overlap 0.9 conflicts with --paper, which sets overlap 1.0"),
         (["--paper", "--init", "moments"], "conflicts with --paper, which sets initialization identity"),
-        (["--paper", "--robust"], "not allowed with argument"),
         (["--levels", "0"], "levels must be in [1, 10]"),
     ):
         done = run("register", *files, *extra)
         assert done.returncode == 2 and message in done.stderr, (extra, done.stderr)
         assert "Traceback" not in done.stderr
     # A value the preset agrees with, or an option it leaves alone, is fine.
-    for extra in (["--robust", "--overlap", "0.8"], ["--paper", "--max-iterations", "200"]):
+    for extra in (["--paper", "--overlap", "1"], ["--paper", "--max-iterations", "200"]):
         done = run("register", *files, *extra, "--json")
         assert done.returncode == 0, done.stderr
         assert json.loads(done.stdout)["scale"] == pytest.approx(2.5, rel=1e-3)

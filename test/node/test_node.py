@@ -173,9 +173,9 @@ def test_diagnostics_report_rates_latency_and_result(ros):
 
 def test_parameters_validated_at_run_time(ros):
     node, _ = ros
-    result = node.set_parameters([Parameter("overlap", value=0.0)])[0]
+    result = node.set_parameters([Parameter("overlap", value=1.5)])[0]
     assert not result.successful and "overlap" in result.reason
-    assert node.get_parameter("overlap").value == 1.0
+    assert node.get_parameter("overlap").value == 0.0  # 0: estimated from the data
     result = node.set_parameters([Parameter("method", value="ransac")])[0]
     assert not result.successful and "method must be one of" in result.reason
     result = node.set_parameters([Parameter("model_qos", value="reliable")])[0]
@@ -185,7 +185,7 @@ def test_parameters_validated_at_run_time(ros):
     assert wait_until(
         lambda: registrar.settings.registration.overlap == 0.9 or registrar.pending_settings is not None, 2.0
     )
-    assert node.set_parameters([Parameter("overlap", value=1.0)])[0].successful
+    assert node.set_parameters([Parameter("overlap", value=0.0)])[0].successful
 
 
 def test_reset_service_clears_model_and_warm_start(ros):

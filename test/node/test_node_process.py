@@ -99,12 +99,12 @@ def test_console_script_registers_validates_parameters_and_exits_cleanly_on_sigi
     np.testing.assert_allclose(estimate.rotation, TRUTH.rotation, atol=3e-3)
     np.testing.assert_allclose(estimate.translation, TRUTH.translation, atol=1e-2)
 
-    # `ros2 param set /frisicp overlap 0.0` goes through this service
+    # `ros2 param set /frisicp overlap 1.5` goes through this service
     client = probe.create_client(SetParameters, "/frisicp/set_parameters")
     assert client.wait_for_service(timeout_sec=TIMEOUT)
     request = SetParameters.Request(
         parameters=[
-            Parameter("overlap", value=0.0).to_parameter_msg(),
+            Parameter("overlap", value=1.5).to_parameter_msg(),
             Parameter("levels", value=2).to_parameter_msg(),
         ]
     )
@@ -126,7 +126,7 @@ def test_console_script_registers_validates_parameters_and_exits_cleanly_on_sigi
 
 def test_invalid_parameter_file_value_fails_with_a_message(tmp_path):
     bad = tmp_path / "bad.yaml"
-    bad.write_text("/**:\n  ros__parameters:\n    overlap: 0.0\n")
+    bad.write_text("/**:\n  ros__parameters:\n    overlap: 1.5\n")
     run = subprocess.run(
         [str(REGISTER_NODE), "--ros-args", "--params-file", str(bad)],
         env=ENV,
