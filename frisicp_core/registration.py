@@ -243,7 +243,7 @@ class _Solver:
         for iteration in range(1, _SCREENING_ITERATIONS):
             merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
             stepped, valid = self.step(level, pairs)
-            stepped = poses.where(~valid, stepped)
+            stepped = poses.where(valid, stepped)
             best = float(merit.min())
             alive = merit < np.inf
             alive &= (level.motion(poses, stepped) > tolerance) | (merit <= best)
