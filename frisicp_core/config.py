@@ -51,13 +51,20 @@ class ConvergenceCriteria:
     A level converges when the similarity moved the data by less than ``relative_motion`` times
     the model's RMS radius (RMS over the data points) between two iterations, or the error
     changed by less than ``relative_rmse`` relative to itself.
-    Coarse levels use the looser ``coarse_relative_motion``: the next level refines them anyway.
+    The coarsest level uses the looser ``coarse_relative_motion`` (the next level refines it
+    anyway), the levels between a tolerance geometrically between the two.
+    ``noise_floor``: a level also converges once a step moves the data by less than the standard
+    error of the estimate, RMS residual / sqrt(pairs kept). Two clouds that sample a surface
+    differently (every real pair) fit only up to that; iterating below it moves the answer by
+    less than its own uncertainty, slowly, since point-to-point ICP crawls along the surface.
+    Noise-free copies have RMS ~ 0, so they still converge to ``relative_motion``.
     """
 
     max_iterations: int = 100
     relative_motion: float = 1e-5
     relative_rmse: float = 1e-9
     coarse_relative_motion: float = 1e-3
+    noise_floor: bool = True
 
     def __post_init__(self) -> None:
         _require(self.max_iterations >= 1, "max_iterations must be >= 1")
@@ -87,6 +94,13 @@ class RegistrationConfig:
     registering data onto model and model onto data are one problem (see
     :mod:`frisicp_core.estimate`); False is the paper's (Umeyama's) scale, errors in the model
     frame, which favours a smaller data set when the overlap is partial.
+    ``dense_targets``: the levels above the coarsest pair a growing subset of each set's points
+    with the *full* other set (its nearest neighbours are exact), instead of with an equally
+    thinned subset (the paper). Two independently thinned samplings of a surface pair
+    point-to-point with a bias of a sizeable fraction of their spacing, so each paper level
+    converges somewhere else and the finest level starts a few iterations away; with dense
+    targets every level estimates the same optimum and the finest needs one or two. The
+    coarsest level, where the initial hypotheses are screened, is thinned on both sides.
     """
 
     method: Method = Method.FRISICP
@@ -96,6 +110,7 @@ class RegistrationConfig:
     overlap: float | None = None
     max_distance: float | None = None
     symmetric: bool = True
+    dense_targets: bool = True
     initialization: Initialization = Initialization.SEARCH
     initial: Similarity | None = None
     acceleration: bool = True
@@ -132,6 +147,8 @@ class RegistrationConfig:
             "levels": 3 if method is Method.FRISICP else 1,
             "overlap": 1.0,
             "symmetric": False,
+            "dense_targets": False,
+            "criteria": ConvergenceCriteria(noise_floor=False),
             "acceleration": False,
         }
         settings.update(overrides)

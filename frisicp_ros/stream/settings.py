@@ -288,6 +288,12 @@ OPTIONS: tuple[Option, ...] = (
         bounds=(0.0, 1.0),
     ),
     core_option(
+        "noise_floor",
+        "convergence: also stop once a step is smaller than the estimate's standard error"
+        " (RMS residual / sqrt(pairs)); false = iterate down to relative_motion",
+        core="criteria.noise_floor",
+    ),
+    core_option(
         "overlap",
         "share (0, 1] of each cloud's points that have a counterpart in the other: only that share"
         " of the closest correspondences is used (trimming); 1 = all; 0 = estimated from the data,"
@@ -307,6 +313,11 @@ OPTIONS: tuple[Option, ...] = (
         kind=float,
         zero_means="off",
         bounds=(0.0, 1e6),
+    ),
+    core_option(
+        "dense_targets",
+        "levels above the coarsest pair subsets of points with the full other cloud (exact"
+        " neighbours: every level estimates the same pose); false = both thinned (the paper)",
     ),
     core_option(
         "initialization",
