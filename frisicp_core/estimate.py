@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .points import centroid
 from .poses import PoseBatch
 from .similarity import FloatArray, Similarity
 
@@ -149,7 +150,7 @@ def estimate_similarity(
         with_scale=with_scale,
         scale_bounds=scale_bounds,
         symmetric=symmetric,
-        origin=(xs.mean(axis=0), ys.mean(axis=0)),
+        origin=(centroid(xs), centroid(ys)),
     )
     if not valid[0]:
         if with_scale and np.ptp(xs[w > 0], axis=0).max() == 0:

@@ -22,6 +22,7 @@ import itertools
 import numpy as np
 
 from .config import Initialization, Method, RegistrationConfig
+from .points import centroid, rms_radius
 from .similarity import FloatArray, Similarity
 
 # Scales of the in-place hypotheses, in octaves around the RMS-radius ratio: a part of a surface
@@ -32,17 +33,15 @@ IN_PLACE_OCTAVES = (-1.0, -0.5, 0.0, 0.5, 1.0)
 
 def principal_axes(points: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
     """Centroid, covariance eigenvalues (descending) and eigenvectors (columns, same order)."""
-    centroid = points.mean(axis=0)
-    centred = points - centroid
+    mean = centroid(points)
+    centred = points - mean
     eigval, eigvec = np.linalg.eigh(centred.T @ centred / points.shape[0])
-    return centroid, eigval[::-1], eigvec[:, ::-1]
+    return mean, eigval[::-1], eigvec[:, ::-1]
 
 
 def radius_ratio(data: FloatArray, model: FloatArray) -> float:
     """Model RMS radius over data RMS radius: the scale if the two sets overlap fully."""
-    spread_data = float(((data - data.mean(axis=0)) ** 2).sum(axis=1).mean())
-    spread_model = float(((model - model.mean(axis=0)) ** 2).sum(axis=1).mean())
-    return float(np.sqrt(spread_model / spread_data))
+    return rms_radius(model) / rms_radius(data)
 
 
 def initial_hypotheses(
@@ -64,7 +63,7 @@ def initial_hypotheses(
         rotations = [np.eye(dim)]
         if config.initialization in (Initialization.PRINCIPAL_AXES, Initialization.SEARCH):
             rotations += _principal_axes_rotations(data, model)
-        mu_d, mu_m = data.mean(axis=0), model.mean(axis=0)
+        mu_d, mu_m = centroid(data), centroid(model)
         scale = 1.0 if config.method is Method.ICP else ratio
         guesses = [Similarity(scale, rot, mu_m - scale * rot @ mu_d) for rot in rotations]
         if config.initialization is Initialization.SEARCH:

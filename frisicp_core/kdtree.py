@@ -44,6 +44,7 @@ class NearestNeighbors:
             raise ValueError(f"backend {backend!r} requested but it is not installed")
         self.points = np.ascontiguousarray(points, dtype=np.float64)
         self.backend = available_backends()[0] if backend == "auto" else backend
+        self._spacing: float | None = None
         self._tree: Any  # pykdtree's KDTree or scipy's cKDTree; their query signatures differ
         if self.backend == "pykdtree":
             self._tree = _PyKDTree(self.points, leafsize=16)
@@ -59,21 +60,24 @@ class NearestNeighbors:
         dist, idx = self._tree.query(q, k=1, workers=-1)
         return dist * dist, idx.astype(np.int64, copy=False)
 
-    def spacing(self, sample: int) -> float:
+    def spacing(self, sample: int = 256) -> float:
         """Median distance from a stored point to its nearest *other* stored point.
 
-        Measured on at most ``sample`` points spread evenly over the storage order, so it costs
-        a small fixed number of queries whatever the set's size; 0 for fewer than 2 points.
+        Measured once, on at most ``sample`` points spread evenly over the storage order, so it
+        costs a small fixed number of queries whatever the set's size; 0 for fewer than 2 points.
         """
-        n = self.points.shape[0]
-        if n < 2:
-            return 0.0
-        q = self.points[:: max(1, n // sample)]
-        if self.backend == "pykdtree":
-            dist_sq, _ = self._tree.query(q, k=2, sqr_dists=True)
-            return float(np.sqrt(np.median(dist_sq[:, 1])))
-        dist, _ = self._tree.query(q, k=2)
-        return float(np.median(dist[:, 1]))
+        if self._spacing is None:
+            n = self.points.shape[0]
+            q = self.points[:: max(1, n // sample)]
+            if n < 2:
+                self._spacing = 0.0
+            elif self.backend == "pykdtree":
+                dist_sq, _ = self._tree.query(q, k=2, sqr_dists=True)
+                self._spacing = float(np.sqrt(np.median(dist_sq[:, 1])))
+            else:
+                dist, _ = self._tree.query(q, k=2)
+                self._spacing = float(np.median(dist[:, 1]))
+        return self._spacing
 
 
 def nearest(points: FloatArray, queries: FloatArray, backend: str = "auto") -> tuple[FloatArray, np.ndarray]:

@@ -44,13 +44,13 @@ from numpy.typing import ArrayLike
 from .acceleration import AndersonAccelerator
 from .config import Method, RegistrationConfig
 from .estimate import PairPart, estimate_similarities
-from .hypotheses import covariance_scale_bounds, initial_hypotheses, radius_ratio
+from .hypotheses import covariance_scale_bounds, initial_hypotheses
 from .kdtree import NearestNeighbors
 from .overlap import Selection, select_pairs
-from .points import as_point_set, check_same_dimension, rms_radius
+from .points import as_point_set, centroid, check_same_dimension, rms_radius
 from .poses import PoseBatch
 from .result import IterationRecord, LevelReport, RegistrationResult
-from .sampling import downsample, level_sizes
+from .sampling import downsample, level_sizes, needs_spatial_order, spatial_order
 from .similarity import FloatArray, Similarity
 from .verdict import judge
 
@@ -62,6 +62,9 @@ _SCREENING_ITERATIONS = 10
 _SCREEN_PRUNE_RATIO = 2.0
 _SCREEN_MARGIN = 0.02
 _SCREEN_PRUNE_FROM = 2
+# A level's first step is significant when it moves the data by more than this many standard
+# errors of the estimate (see ConvergenceCriteria.noise_floor): the usual three-sigma rule.
+_SIGNIFICANT = 3.0
 # First iteration of a level at which Anderson acceleration may propose steps.
 _ACCELERATE_FROM = 3
 # Points sampled to measure a set's spacing (median distance to the nearest other point).
@@ -101,8 +104,8 @@ class _Level:
             model=model,
             data_tree=data_tree,
             model_tree=model_tree,
-            data_mean=data.mean(axis=0),
-            model_mean=model.mean(axis=0),
+            data_mean=centroid(data),
+            model_mean=centroid(model),
             data_second_moment=data.T @ data / data.shape[0],
             data_spacing=data_tree.spacing(_SPACING_SAMPLE) if data_tree else 0.0,
             model_spacing=model_tree.spacing(_SPACING_SAMPLE),
@@ -132,6 +135,47 @@ class _Pass:
             self.forward.sum_sq[k] + self.backward.sum_sq[k], self.forward.kept[k] + self.backward.kept[k]
         )
         return both, forward, _rms(self.backward.sum_sq[k], self.backward.kept[k])
+
+
+class _Pyramid:
+    """The levels of one registration, built when first used (a warm start may skip some)."""
+
+    def __init__(
+        self,
+        pyramid: list[tuple[FloatArray, FloatArray]],
+        data: FloatArray,
+        model: FloatArray,
+        bidirectional: bool,
+        config: RegistrationConfig,
+    ) -> None:
+        self._sets = pyramid
+        self._full = (data, model)
+        self._bidirectional = bidirectional
+        self._config = config
+        self._built: dict[int, _Level] = {}
+        self._targets: tuple[NearestNeighbors | None, NearestNeighbors] | None = None
+
+    def screening_level(self) -> _Level:
+        """The coarsest sets thinned on both sides, with their own small trees: hypotheses far
+        from the truth are screened where a query is cheapest. Without dense targets this is
+        level 0 itself."""
+        if not self._config.dense_targets:
+            return self[0]
+        if -1 not in self._built:
+            self._built[-1] = _Level.build(*self._sets[0], self._bidirectional, self._config.backend)
+        return self._built[-1]
+
+    def __getitem__(self, index: int) -> _Level:
+        if index not in self._built:
+            backend = self._config.backend
+            targets = None
+            if self._config.dense_targets:
+                if self._targets is None:
+                    full = _Level.build(*self._full, self._bidirectional, backend)
+                    self._targets = (full.data_tree, full.model_tree)
+                targets = self._targets
+            self._built[index] = _Level.build(*self._sets[index], self._bidirectional, backend, targets)
+        return self._built[index]
 
 
 def _level_motion(config: RegistrationConfig, index: int, last: int) -> float:
@@ -295,17 +339,24 @@ class _Solver:
         return poses[int(np.argmin(merit))]
 
     def run_level(
-        self, index: int, level: _Level, sim: Similarity, *, relative_motion: float
+        self,
+        index: int,
+        level: _Level,
+        sim: Similarity,
+        *,
+        relative_motion: float,
+        first_pass: _Pass | None = None,
     ) -> tuple[Similarity, LevelReport, _Pass]:
         """Iterate correspond -> solve on one level until the similarity moves by less than
-        ``relative_motion`` times the model's radius (or the merit stops falling)."""
+        ``relative_motion`` times the model's radius (or the merit stops falling).
+        ``first_pass``: the correspondences of ``sim`` on this level, if already computed."""
         criteria = self.config.criteria
         tolerance = relative_motion * self.model_radius
         accelerator = (
             AndersonAccelerator(sim, level.data_mean, self.model_radius) if self.config.acceleration else None
         )
         pose = PoseBatch.of([sim])
-        pairs = self.correspond(level, pose)
+        pairs = first_pass if first_pass is not None else self.correspond(level, pose)
         merit = float(pairs.merit[0])
         converged = False
         iterations = 0
@@ -314,7 +365,12 @@ class _Solver:
             stepped, valid = self.step(level, pairs)
             if not valid[0]:
                 break  # degenerate pairs (e.g. a collapsed scale): keep the last valid similarity
-            if level.motion(pose, stepped)[0] <= max(tolerance, self.noise_floor(pairs)):
+            # Below the noise: a level's first step within three standard errors of the estimate
+            # says its start is already as good as this level can tell (a warm start, a finer
+            # level after a converged coarser one); once it has moved, it iterates down to one.
+            # The coarsest level decides the basin: it always runs down to its tolerance.
+            significant = 0.0 if index == 0 else _SIGNIFICANT if iterations == 1 else 1.0
+            if level.motion(pose, stepped)[0] <= max(tolerance, significant * self.standard_error(pairs)):
                 # Converged. The step moved every point by less than the tolerance, so the errors
                 # of the last pass are the returned similarity's: no pass to re-measure them.
                 pose, converged = stepped, True
@@ -343,9 +399,9 @@ class _Solver:
         report = LevelReport(level.data.shape[0], level.model.shape[0], iterations, converged, pairs.rms()[0])
         return pose[0], report, pairs
 
-    def noise_floor(self, pairs: _Pass) -> float:
-        """Standard error of the estimate from one pass: RMS of the kept pairs / sqrt(their number)
-        (0 unless ``criteria.noise_floor``; see ConvergenceCriteria)."""
+    def standard_error(self, pairs: _Pass) -> float:
+        """Standard error of the estimate from one pass, RMS of the kept pairs / sqrt(their
+        number): the noise floor of the convergence test (0 unless ``criteria.noise_floor``)."""
         if not self.config.criteria.noise_floor:
             return 0.0
         kept = pairs.forward.kept[0] + (pairs.backward.kept[0] if pairs.backward is not None else 0.0)
@@ -385,6 +441,11 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
     data_set = as_point_set(data, "data", drop_nonfinite=config.drop_nonfinite)
     model_set = as_point_set(model, "model", drop_nonfinite=config.drop_nonfinite)
     check_same_dimension(data_set, model_set)
+    data_radius, model_radius = rms_radius(data_set), rms_radius(model_set)
+    if needs_spatial_order(data_set, data_radius):
+        data_set = data_set[spatial_order(data_set)]
+    if needs_spatial_order(model_set, model_radius):
+        model_set = model_set[spatial_order(model_set)]
 
     rng = np.random.default_rng(config.seed)
     sizes = level_sizes(data_set.shape[0], model_set.shape[0], config.levels, config.coarsest_points)
@@ -397,24 +458,17 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
     scale_bounds = (
         covariance_scale_bounds(data_set, model_set) if config.method is Method.BOUNDED_ICP else None
     )
-    model_radius = rms_radius(model_set)
     solver = _Solver(config, scale_bounds, model_radius, start)
     bidirectional = config.method is Method.FRISICP
     last = len(pyramid) - 1
 
-    coarsest = _Level.build(*pyramid[0], bidirectional, config.backend)
+    levels = _Pyramid(pyramid, data_set, model_set, bidirectional, config)
     hypotheses = initial_hypotheses(data_set, model_set, config, scale_bounds)
-    sim = hypotheses[0] if len(hypotheses) == 1 else solver.screen(coarsest, hypotheses)
-    sim, report, pairs = solver.run_level(0, coarsest, sim, relative_motion=_level_motion(config, 0, last))
-    reports = [report]
-    targets = None
-    for index in range(1, last + 1):
-        if config.dense_targets and targets is None:
-            full = _Level.build(data_set, model_set, bidirectional, config.backend)
-            targets = (full.data_tree, full.model_tree)
-        level = _Level.build(*pyramid[index], bidirectional, config.backend, targets)
+    sim = solver.screen(levels.screening_level(), hypotheses) if len(hypotheses) > 1 else hypotheses[0]
+    reports = []
+    for index in range(last + 1):
         sim, report, pairs = solver.run_level(
-            index, level, sim, relative_motion=_level_motion(config, index, last)
+            index, levels[index], sim, relative_motion=_level_motion(config, index, last)
         )
         reports.append(report)
 
@@ -428,7 +482,7 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
         rms=rms,
         overlap_forward=overlap_forward,
         overlap_backward=overlap_backward,
-        moment_scale=radius_ratio(data_set, model_set),
+        moment_scale=model_radius / data_radius,
         model_radius=model_radius,
     )
     return RegistrationResult(

@@ -32,3 +32,46 @@ def level_sizes(n_data: int, n_model: int, levels: int, coarsest_points: int) ->
     ratio = (largest / coarsest_points) ** (1.0 / (levels - 1))
     sizes = [round(coarsest_points * ratio**k) for k in range(levels - 1)]
     return [*sizes, largest]
+
+
+# Bits per axis of the grid that spatial_order sorts on.
+_ORDER_BITS = 10
+# Rows checked by needs_spatial_order, and the median step between consecutive rows (relative to
+# the set's RMS radius) above which the storage order counts as scattered.
+_ORDER_PROBE = 256
+_SCATTERED_STEP = 0.1
+
+
+def needs_spatial_order(points: FloatArray, radius: float) -> bool:
+    """True when consecutive rows lie far apart (a random or shuffled order).
+
+    Scanners store points along their scan lines, where consecutive points are neighbours; a
+    random order makes KD-tree queries jump around memory. Measured on a few consecutive pairs.
+    """
+    n = points.shape[0]
+    if n < 4 * _ORDER_PROBE or radius <= 0:
+        return False
+    rows = points[: _ORDER_PROBE + 1]
+    steps = np.sqrt(np.einsum("ij,ij->i", rows[1:] - rows[:-1], rows[1:] - rows[:-1]))
+    return bool(np.median(steps) > _SCATTERED_STEP * radius)
+
+
+def spatial_order(points: FloatArray) -> np.ndarray:
+    """The permutation that sorts points along a Z-order (Morton) curve over their bounding box.
+
+    Neighbours in space become neighbours in memory, so successive KD-tree queries touch the
+    same tree nodes: on randomly ordered clouds the queries run 1.2-1.35 times faster
+    (docs/nn_backends.md), for a sort that costs about 1 ms per 10,000 points.
+    """
+    dim = points.shape[1]
+    low = np.array([points[:, k].min() for k in range(dim)])  # per column: see points.centroid
+    span = max(float(points[:, k].max()) - low[k] for k in range(dim)) or 1.0
+    cells = np.minimum(
+        ((points - low) * ((1 << _ORDER_BITS) / span)).astype(np.uint64), (1 << _ORDER_BITS) - 1
+    )
+    code = np.zeros(points.shape[0], dtype=np.uint64)
+    for bit in range(_ORDER_BITS):
+        for axis in range(dim):
+            code |= ((cells[:, axis] >> np.uint64(bit)) & np.uint64(1)) << np.uint64(bit * dim + axis)
+    order: np.ndarray = np.argsort(code, kind="stable")
+    return order
