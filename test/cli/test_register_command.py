@@ -131,3 +131,19 @@ def test_unknown_extension(tmp_path):
     (tmp_path / "cloud.obj").write_text("v 1 2 3\n")
     with pytest.raises(CloudFileError, match="unknown extension"):
         read_points(tmp_path / "cloud.obj")
+
+
+def test_numeric_options_are_bounded_like_the_node_parameters(capsys):
+    """`--levels 100000000` ran out of memory with a traceback; every number has a range."""
+    from frisicp_ros.cli import main as cli
+
+    for flag, value, name in (
+        ("--levels", "100000000", "levels"),
+        ("--max-iterations", "10000000000", "max_iterations"),
+        ("--coarsest-points", "10000000000", "coarsest_points"),
+        ("--overlap", "nan", "overlap"),
+        ("--max-distance", "inf", "max_distance"),
+    ):
+        code = cli.main(["register", "a.xyz", "b.xyz", flag, value])
+        err = capsys.readouterr().err
+        assert code == 2 and f"{name} must be in [" in err, err
