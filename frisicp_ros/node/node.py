@@ -352,6 +352,7 @@ def main(args: list[str] | None = None) -> int:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        shutdown.ignore_from_now_on()
     return 0
 
 

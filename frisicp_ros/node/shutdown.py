@@ -8,6 +8,10 @@ itself: a traceback and exit code -2. :func:`install` therefore puts a handler i
 ``rclpy.init`` that only records the signal. rclpy chains to it, so the first signal still stops
 the node through rclpy, and every further one is absorbed while the node finishes cleanly.
 (Installing it after ``rclpy.init`` would replace rclpy's handler: Python re-registers its own.)
+
+At the very end, :func:`ignore_from_now_on`: Python's finalization resets every signal with a
+Python handler to its default action, and tearing down DDS takes tens of milliseconds more, so a
+second Ctrl-C 50 ms after the first used to kill the exiting process (exit code -2).
 """
 
 from __future__ import annotations
@@ -41,3 +45,10 @@ def install() -> StopSignals:
     for signum in STOP_SIGNALS:
         signal.signal(signum, signals._on_signal)
     return signals
+
+
+def ignore_from_now_on() -> None:
+    """The process is exiting: SIGINT and SIGTERM may no longer change how (finalization keeps an
+    ignored signal ignored)."""
+    for signum in STOP_SIGNALS:
+        signal.signal(signum, signal.SIG_IGN)
