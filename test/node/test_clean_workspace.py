@@ -21,20 +21,18 @@ import shutil
 import signal
 import subprocess
 import sys
-import threading
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 import pytest
 import yaml
-from support.ros import ros_environment, wait_until
+from support.ros import ros_environment, spinning_node, wait_until
 
-ENV = ros_environment(137)
+DOMAIN = 137
+ENV = ros_environment(DOMAIN)
 
-import rclpy  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
@@ -140,20 +138,10 @@ print("every dependency is there")
 
 @pytest.fixture
 def diagnostics():
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    probe = rclpy.create_node("clean_probe", context=context)
-    received: list[DiagnosticArray] = []
-    probe.create_subscription(DiagnosticArray, "/diagnostics", received.append, 10)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(probe)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
-    yield received
-    executor.shutdown(timeout_sec=5)
-    probe.destroy_node()
-    rclpy.shutdown(context=context)
-    spinner.join(5)
+    with spinning_node("clean_probe", DOMAIN) as probe:
+        received: list[DiagnosticArray] = []
+        probe.create_subscription(DiagnosticArray, "/diagnostics", received.append, 10)
+        yield received
 
 
 def test_built_with_only_package_xml_dependencies_the_node_starts_answers_and_stops(tmp_path, diagnostics):

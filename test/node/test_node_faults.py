@@ -13,7 +13,8 @@ import numpy as np
 import pytest
 from support.ros import TRUTH, ros_environment, scene_messages, transform_similarity, wait_until
 
-ros_environment(135)  # before rclpy.init
+DOMAIN = 135
+ros_environment(DOMAIN)
 
 import rclpy  # noqa: E402
 from geometry_msgs.msg import TransformStamped  # noqa: E402
@@ -40,7 +41,7 @@ class Running:
 
     def __init__(self, *parameters: Parameter) -> None:
         self.context = rclpy.Context()
-        rclpy.init(context=self.context)
+        rclpy.init(context=self.context, domain_id=DOMAIN)
         self.node = RegistrationNode(
             context=self.context,
             parameter_overrides=[

@@ -12,17 +12,22 @@ import os
 import signal
 import subprocess
 import sys
-import threading
 import time
 
 import pytest
-from support.ros import TRUTH, ros_environment, scene_messages, transform_similarity, wait_until
+from support.ros import (
+    TRUTH,
+    ros_environment,
+    scene_messages,
+    spinning_node,
+    transform_similarity,
+    wait_until,
+)
 
-ENV = ros_environment(134)
+DOMAIN = 134
+ENV = ros_environment(DOMAIN)
 
-import rclpy  # noqa: E402
 from geometry_msgs.msg import TransformStamped  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import PointCloud2  # noqa: E402
 
@@ -55,18 +60,8 @@ def stop(process: subprocess.Popen) -> None:
 
 @pytest.fixture
 def probe():
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    node = rclpy.create_node("signal_probe", context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
-    yield node
-    executor.shutdown(timeout_sec=5)
-    node.destroy_node()
-    rclpy.shutdown(context=context)
-    spinner.join(5)
+    with spinning_node("signal_probe", DOMAIN) as node:
+        yield node
 
 
 def publishers(probe):
