@@ -487,3 +487,48 @@ def test_a_closed_results_pipe_stops_cleanly_and_keeps_the_result_bag(bags, tmp_
 
     with AnyReader([out_bag]) as reader:  # finished and readable, though empty
         assert reader.topics["/frisicp/transform"].msgcount == 0
+
+
+def test_a_damaged_but_decodable_cloud_is_marked_unreliable_not_reported_as_a_pose(capsys, tmp_path):
+    """Bytes damaged on disk inside a cloud's point data (no checksum notices): the message
+    decodes, its numbers are garbage. It used to give a "converged" pose. Now its line says
+    ok false with the reason, the summary counts it, the result bag leaves it out, and the pair
+    after it is right (the damage did not poison the warm start)."""
+    from rosbags.highlevel import AnyReader
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import Stores, get_typestore
+    from support.bags import rosbags_cloud
+
+    model = bumpy_surface(POINTS, seed=1)
+    truth = truth_for(0)
+    records = [
+        CloudRecord(MODEL_TOPIC, 10, 10, MODEL_FRAME, model),
+        CloudRecord(DATA_TOPIC, 20, 20, DATA_FRAME, data_cloud(model, truth, 1)),
+        CloudRecord(DATA_TOPIC, 30, 30, DATA_FRAME, data_cloud(model, truth, 2)),  # damaged below
+        CloudRecord(DATA_TOPIC, 40, 40, DATA_FRAME, data_cloud(model, truth, 3)),
+    ]
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    bag, out_bag = tmp_path / "damaged", tmp_path / "results"
+    noise = np.random.default_rng(7)
+    with Writer(bag, version=9, storage_plugin=StoragePlugin.MCAP) as writer:
+        connections = {
+            topic: writer.add_connection(topic, "sensor_msgs/msg/PointCloud2", typestore=typestore)
+            for topic in (MODEL_TOPIC, DATA_TOPIC)
+        }
+        for record in records:
+            raw = bytearray(
+                typestore.serialize_cdr(rosbags_cloud(typestore, record), "sensor_msgs/msg/PointCloud2")
+            )
+            if record.bag_ns == 30:  # the point bytes (all but the last byte, is_dense) overwritten
+                size = len(record.points) * 16
+                raw[-size - 1 : -1] = noise.bytes(size)
+            writer.write(connections[record.topic], record.bag_ns, bytes(raw))
+    code, out, err = run_cli(capsys, *bag_args(bag, "--out-bag", out_bag, "--no-progress"))
+    assert code == 0, err  # the bag was read to its end; the verdict is per pair
+    good_before, damaged, good_after = read_jsonl(out)
+    assert_matches_truth(good_before, truth)
+    assert damaged["ok"] is False and damaged["reliable"] is False and damaged["reason"], damaged
+    assert_matches_truth(good_after, truth)
+    assert ("unreliable 1" in err) or ("rejected 1" in err), err
+    with AnyReader([out_bag]) as reader:
+        assert reader.topics["/frisicp/transform"].msgcount == 2
