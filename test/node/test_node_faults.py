@@ -7,24 +7,20 @@ Domain 135 (unique to this module), loopback discovery only.
 from __future__ import annotations
 
 import dataclasses
-import threading
 
 import numpy as np
 import pytest
-from support.ros import TRUTH, ros_environment, scene_messages, transform_similarity, wait_until
+from support.ros import TRUTH, NodeAndProbe, ros_environment, scene_messages, transform_similarity, wait_until
 
 DOMAIN = 135
 ros_environment(DOMAIN)
 
-import rclpy  # noqa: E402
 from geometry_msgs.msg import TransformStamped  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import PointCloud2  # noqa: E402
 
 from frisicp_core import rotation_angle  # noqa: E402
-from frisicp_ros.node.node import RegistrationNode  # noqa: E402
 from frisicp_ros.node.status import ERROR, OK  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -36,32 +32,19 @@ LATCHED = QoSProfile(
 )
 
 
-class Running:
+class Running(NodeAndProbe):
     """A node and a probe in one executor on a thread."""
 
     def __init__(self, *parameters: Parameter) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=DOMAIN)
-        self.node = RegistrationNode(
-            context=self.context,
-            parameter_overrides=[
-                Parameter("max_points", value=2000),
-                Parameter("model_qos", value="transient_local"),
-                *parameters,
-            ],
-        )
-        self.probe = rclpy.create_node("fault_probe", context=self.context)
+        overrides = [Parameter("max_points", value=2000), Parameter("model_qos", value="transient_local")]
+        super().__init__(DOMAIN, [*overrides, *parameters], "fault_probe")
         self.transforms: list[TransformStamped] = []
         self.probe.create_subscription(
             TransformStamped, "/frisicp/transform", self.transforms.append, RELIABLE
         )
         self.model_pub = self.probe.create_publisher(PointCloud2, "model", LATCHED)
         self.data_pub = self.probe.create_publisher(PointCloud2, "data", RELIABLE)
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.executor.add_node(self.probe)
-        self.spinner = threading.Thread(target=self.executor.spin, daemon=True)
-        self.spinner.start()
+        self.start()
 
     def answered(self, data: PointCloud2) -> TransformStamped | None:
         wanted = (data.header.stamp.sec, data.header.stamp.nanosec)
@@ -83,13 +66,6 @@ class Running:
     def report(self):
         node = self.node
         return node._status.report(node._slot.dropped, node._pairer.unpaired_data, True)
-
-    def close(self) -> None:
-        self.executor.shutdown(timeout_sec=5)
-        self.node.destroy_node()
-        self.probe.destroy_node()
-        rclpy.shutdown(context=self.context)
-        self.spinner.join(5)
 
 
 @pytest.fixture

@@ -16,28 +16,24 @@ from __future__ import annotations
 
 import copy
 import os
-import threading
 import time
 from collections import Counter
 from collections.abc import Callable
 
 import numpy as np
 import pytest
-from support.ros import cloud_message, ros_environment, transform_similarity
+from support.ros import NodeAndProbe, cloud_message, ros_environment, transform_similarity
 
 DOMAIN = 136
 ros_environment(DOMAIN)
 
-import rclpy  # noqa: E402
 from geometry_msgs.msg import TransformStamped  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import PointCloud2, PointField  # noqa: E402
 from std_msgs.msg import Float64  # noqa: E402
 
 from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface, rotation_angle  # noqa: E402
-from frisicp_ros.node.node import RegistrationNode  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
@@ -156,20 +152,15 @@ GARBAGE = {"lying byte order", "random bytes", "one far outlier", "coordinates 1
 AS_MODEL_SHARE = 0.25
 
 
-class Fuzzer:
+class Fuzzer(NodeAndProbe):
     def __init__(self) -> None:
-        self.context = rclpy.Context()
-        rclpy.init(context=self.context, domain_id=DOMAIN)
-        self.node = RegistrationNode(
-            context=self.context,
-            parameter_overrides=[
-                Parameter("model_qos", value="reliable"),
-                Parameter("data_qos", value="reliable"),
-                Parameter("max_points", value=0),
-                Parameter("diagnostics_period", value=60.0),
-            ],
-        )
-        self.probe = rclpy.create_node("fuzz_probe", context=self.context)
+        parameters = [
+            Parameter("model_qos", value="reliable"),
+            Parameter("data_qos", value="reliable"),
+            Parameter("max_points", value=0),
+            Parameter("diagnostics_period", value=60.0),
+        ]
+        super().__init__(DOMAIN, parameters, "fuzz_probe")
         self.model_pub = self.probe.create_publisher(PointCloud2, "model", RELIABLE)
         self.data_pub = self.probe.create_publisher(PointCloud2, "data", RELIABLE)
         # Both in publication order: the n-th scale belongs to the n-th transform.
@@ -180,11 +171,7 @@ class Fuzzer:
         self.probe.create_subscription(
             Float64, "/frisicp/scale", lambda m: self.scales.append(m.data), RELIABLE
         )
-        self.executor = SingleThreadedExecutor(context=self.context)
-        self.executor.add_node(self.node)
-        self.executor.add_node(self.probe)
-        self.spinner = threading.Thread(target=self.executor.spin, daemon=True)
-        self.spinner.start()
+        self.start()
         deadline = time.monotonic() + 10
         while time.monotonic() < deadline and not (
             self.model_pub.get_subscription_count() and self.data_pub.get_subscription_count()
@@ -235,13 +222,6 @@ class Fuzzer:
             )
             assert self.node._worker.is_alive(), "the registration worker died"
             time.sleep(0.0005)
-
-    def close(self) -> None:
-        self.executor.shutdown(timeout_sec=5)
-        self.node.destroy_node()
-        self.probe.destroy_node()
-        rclpy.shutdown(context=self.context)
-        self.spinner.join(5)
 
 
 def rss_mib() -> float:

@@ -89,3 +89,36 @@ def spinning_node(name: str, domain_id: int) -> Iterator[Any]:
         node.destroy_node()
         rclpy.shutdown(context=context)
         spinner.join(5)
+
+
+class NodeAndProbe:
+    """``RegistrationNode`` in this process plus a probe node, one executor spinning both on a
+    thread, in their own context in ``domain_id``. ``close()`` takes it all down."""
+
+    def __init__(self, domain_id: int, parameters: list[Any], probe_name: str) -> None:
+        import rclpy
+        from rclpy.executors import SingleThreadedExecutor
+
+        from frisicp_ros.node.node import RegistrationNode
+
+        self.context = rclpy.Context()
+        rclpy.init(context=self.context, domain_id=domain_id)
+        self.node = RegistrationNode(context=self.context, parameter_overrides=parameters)
+        self.probe = rclpy.create_node(probe_name, context=self.context)
+        self.executor = SingleThreadedExecutor(context=self.context)
+        self.executor.add_node(self.node)
+        self.executor.add_node(self.probe)
+        self.spinner = threading.Thread(target=self.executor.spin, daemon=True)
+
+    def start(self) -> None:
+        """Spin (after the probe's publishers and subscriptions are made)."""
+        self.spinner.start()
+
+    def close(self) -> None:
+        import rclpy
+
+        self.executor.shutdown(timeout_sec=5)
+        self.node.destroy_node()
+        self.probe.destroy_node()
+        rclpy.shutdown(context=self.context)
+        self.spinner.join(5)
