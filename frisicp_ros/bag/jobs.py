@@ -117,7 +117,7 @@ def _starting_workers() -> Iterator[None]:
             yield
         finally:
             for signum, handler in handlers.items():
-                signal.signal(signum, handler)
+                signal.signal(signum, handler if handler is not None else signal.SIG_DFL)
             signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
 
