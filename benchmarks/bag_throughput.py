@@ -78,7 +78,7 @@ def run(bag: Path, jobs: int, workdir: Path, env_extra: dict[str, str]) -> dict[
         DATA_TOPIC,
         "--max-points",
         "0",
-        "--no-warm-start",  # independent pairs: what --jobs 2 needs, and the same work for --jobs 1
+        "--no-warm-start",  # independent pairs: the same work for --jobs 1 and 2 (no chunked warm start)
         "--jobs",
         str(jobs),
         "--out",

@@ -9,15 +9,19 @@ from .similarity import FloatArray
 
 # Variance ratio below which a principal direction counts as absent (rank deficiency).
 _RANK_TOLERANCE = 1e-12
+# A point this many times farther from the median than the typical point is an outlier (only
+# looked for when the set seems degenerate, to say why).
+_OUTLIER_FACTOR = 1000.0
 
 
 def as_point_set(points: ArrayLike, name: str, *, drop_nonfinite: bool = False) -> FloatArray:
     """Return ``points`` as a C-contiguous (N, m) float64 array fit for registration.
 
     Raises ``ValueError`` for: not 2-D, m < 2, non-finite rows (unless ``drop_nonfinite``, which
-    removes them), fewer than m + 1 points, or a degenerate geometry: fewer than max(2, m - 1)
-    independent directions (all points identical, or collinear), where the pose is not
-    determined.
+    removes them), fewer than m + 1 points, coordinates so large that float64 arithmetic
+    overflows, a few far outliers that make the rest look degenerate, or a degenerate geometry:
+    fewer than max(2, m - 1) independent directions (all points identical, or collinear), where
+    the pose is not determined.
     """
     try:
         pts = np.asarray(points, dtype=np.float64)
@@ -41,9 +45,11 @@ def as_point_set(points: ArrayLike, name: str, *, drop_nonfinite: bool = False) 
         raise ValueError(f"{name}: the point set is empty" + (" after dropping NaN/Inf rows" if bad else ""))
     if n < dim + 1:
         raise ValueError(f"{name}: {n} points is too few in {dim}-D, need at least {dim + 1}")
+    _check_magnitude(pts, name)
     rank = _spanned_directions(pts)
     needed = max(2, dim - 1)
     if rank < needed:
+        _explain_outliers(pts, name, needed)
         what = (
             "all points are identical"
             if rank == 0
@@ -62,6 +68,43 @@ def centroid(pts: FloatArray) -> FloatArray:
     reduces along the slow axis, about 30 times slower, and this runs on every level."""
     mean: FloatArray = np.ones(pts.shape[0]) @ pts / pts.shape[0]
     return mean
+
+
+def _check_magnitude(pts: FloatArray, name: str) -> None:
+    """Sums of squared coordinates must stay finite (else: "Eigenvalues did not converge")."""
+    n, dim = pts.shape
+    largest = float(np.abs(pts).max())
+    usable = float(np.sqrt(np.finfo(np.float64).max / (16.0 * n * dim)))
+    if largest > usable:
+        raise ValueError(
+            f"{name}: coordinates up to {largest:.3g} overflow float64 arithmetic (sums of their squares"
+            f" exceed {np.finfo(np.float64).max:.3g}); {n} points allow magnitudes up to {usable:.3g}:"
+            " scale the points down"
+        )
+
+
+def _explain_outliers(pts: FloatArray, name: str, needed: int) -> None:
+    """Raise if a few far points, not the shape, make ``pts`` look degenerate.
+
+    One point at 1e30 among points of size 1 leaves every other direction's variance below the
+    rank tolerance: the cloud looks collinear although the rest of it is a fine surface.
+    """
+    centre = np.median(pts, axis=0)
+    distance = np.sqrt(((pts - centre) ** 2).sum(axis=1))
+    typical = float(np.median(distance))
+    far = distance > _OUTLIER_FACTOR * typical
+    if typical == 0.0 or not far.any() or far.all():
+        return
+    rest = pts[~far]
+    if rest.shape[0] <= pts.shape[1] or _spanned_directions(rest) < needed:
+        return  # degenerate without them too: the usual message is the right one
+    count, farthest = int(far.sum()), float(distance.max())
+    which = f"one point is {farthest:.3g}" if count == 1 else f"{count} points are up to {farthest:.3g}"
+    raise ValueError(
+        f"{name}: {which} away from the others (typical distance from their centre {typical:.3g}):"
+        f" {'an outlier' if count == 1 else 'outliers'}; remove {'it' if count == 1 else 'them'}"
+        " (the other points are fine)"
+    )
 
 
 def _spanned_directions(pts: FloatArray) -> int:

@@ -52,7 +52,7 @@ from .poses import PoseBatch
 from .result import IterationRecord, LevelReport, RegistrationResult
 from .sampling import downsample, level_sizes, needs_spatial_order, spatial_order
 from .similarity import FloatArray, Similarity
-from .verdict import judge
+from .verdict import judge, spread
 
 # Iterations every initial hypothesis gets on the coarsest level before the best is chosen:
 # enough for the wrong ones to settle into their (higher-error) local minima.
@@ -484,6 +484,7 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
         overlap_backward=overlap_backward,
         moment_scale=model_radius / data_radius,
         model_radius=model_radius,
+        spreads=(spread(data_set), spread(model_set)),
     )
     return RegistrationResult(
         similarity=sim,

@@ -5,11 +5,16 @@ early gives one too. :func:`judge` checks what any correct registration satisfie
 data:
 
 - the numbers are finite and the run converged;
+- each cloud is the points of one scene: its RMS radius is at most :data:`MAX_SPREAD` times its
+  median radius. Real clouds give 1-3 (a lidar scan, dense near the sensor, about 3); numbers
+  that are not coordinates (a wrong byte order, random bytes) span dozens of orders of magnitude
+  and give 1e10 and more, and any "fit" to them is meaningless;
 - the scale is within a factor :data:`SCALE_RANGE` of the ratio of the clouds' RMS radii (the
   moment estimate). Partial overlap moves the true scale away from that ratio by the ratio of the
   overlapping part's extent to the whole cloud's, a small factor; 1e-39 or 1e40 is never right;
-- each direction's estimated overlap is at least :data:`MIN_OVERLAP`: below it, too few points
-  carry the estimate to tell a fit from a coincidence;
+- each direction's estimated overlap is above the smallest share the estimator may keep
+  (:data:`frisicp_core.overlap.MIN_FRACTION`): an estimate pinned there wanted fewer pairs
+  still, so no part of the clouds fits;
 - the RMS of the pairs used is small against the model's size (:data:`MAX_RELATIVE_RMS` of its
   RMS radius): two clouds of the same surface fit far closer than that.
 """
@@ -19,11 +24,16 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from .similarity import Similarity
+import numpy as np
+
+from .overlap import MIN_FRACTION
+from .similarity import FloatArray, Similarity
 
 SCALE_RANGE = 10.0
-MIN_OVERLAP = 0.05
+MAX_SPREAD = 1000.0
 MAX_RELATIVE_RMS = 0.1
+# Points that spread() looks at: a median needs no more.
+_SPREAD_SAMPLE = 4096
 
 
 @dataclass(frozen=True)
@@ -32,6 +42,19 @@ class Verdict:
 
     reliable: bool
     reason: str = ""
+
+
+def spread(points: FloatArray) -> float:
+    """RMS radius over median radius, both about the coordinate-wise median (which, unlike the
+    centroid, a few huge values cannot drag away): about 1 for the points of one scene,
+    astronomically large for numbers that are not coordinates."""
+    sample = points[:: max(1, points.shape[0] // _SPREAD_SAMPLE)]
+    centre = np.array([np.median(sample[:, k]) for k in range(sample.shape[1])])
+    offsets = sample - centre
+    squared = np.einsum("ij,ij->i", offsets, offsets)
+    median = float(np.sqrt(np.median(squared)))
+    rms = float(np.sqrt(squared.mean()))
+    return rms / median if median > 0 else math.inf
 
 
 def judge(
@@ -43,29 +66,38 @@ def judge(
     overlap_backward: float,
     moment_scale: float,
     model_radius: float,
+    spreads: tuple[float, float] = (1.0, 1.0),
 ) -> Verdict:
-    """The verdict on one result; ``moment_scale`` = model RMS radius / data RMS radius."""
+    """The verdict on one result.
+
+    ``moment_scale`` = model RMS radius / data RMS radius; ``spreads`` = :func:`spread` of the
+    data and the model. A NaN overlap (forward-only methods measure no backward one) is not judged.
+    """
     problems = []
-    # Forward-only methods measure no backward overlap (NaN): it is then not judged.
     overlaps = [v for v in (overlap_forward, overlap_backward) if not math.isnan(v)]
     if not all(math.isfinite(v) for v in (similarity.scale, rms, *overlaps)) or not overlaps:
-        problems.append("the estimate is not finite")
-    else:
-        if not converged:
-            problems.append("did not converge")
-        ratio = similarity.scale / moment_scale
-        if not 1.0 / SCALE_RANGE <= ratio <= SCALE_RANGE:
+        return Verdict(False, "the estimate is not finite")
+    if not converged:
+        problems.append("did not converge")
+    for side, value in zip(("data", "model"), spreads, strict=True):
+        if not value <= MAX_SPREAD:
             problems.append(
-                f"scale {similarity.scale:.3g} is {ratio:.3g}x the clouds' size ratio {moment_scale:.3g}"
-                f" (plausible: within {SCALE_RANGE:g}x)"
+                f"the {side} cloud is not the points of one scene: its RMS radius is {value:.3g} times"
+                " its median radius (numbers spanning many orders of magnitude: wrong byte order,"
+                " random bytes?)"
             )
-        smallest = min(overlaps)
-        if smallest < MIN_OVERLAP:
-            side = "data" if smallest == overlap_forward else "model"
-            problems.append(f"only {smallest:.1%} of the {side} points overlap (need {MIN_OVERLAP:.0%})")
-        if rms > MAX_RELATIVE_RMS * model_radius:
-            problems.append(
-                f"RMS {rms:.3g} is {rms / model_radius:.1%} of the model's radius"
-                f" (a fit is within {MAX_RELATIVE_RMS:.0%})"
-            )
+    ratio = similarity.scale / moment_scale
+    if not 1.0 / SCALE_RANGE <= ratio <= SCALE_RANGE:
+        problems.append(
+            f"scale {similarity.scale:.3g} is {ratio:.3g}x the clouds' size ratio {moment_scale:.3g}"
+            f" (plausible: within {SCALE_RANGE:g}x)"
+        )
+    for side, value in (("data", overlap_forward), ("model", overlap_backward)):
+        if value <= MIN_FRACTION * 1.01:
+            problems.append(f"only {value:.1%} of the {side} points overlap the other cloud: no part fits")
+    if rms > MAX_RELATIVE_RMS * model_radius:
+        problems.append(
+            f"RMS {rms:.3g} is {rms / model_radius:.1%} of the model's radius"
+            f" (a fit is within {MAX_RELATIVE_RMS:.0%})"
+        )
     return Verdict(not problems, "; ".join(problems))

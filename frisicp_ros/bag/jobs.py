@@ -3,6 +3,12 @@
 Results come out in input order whatever the number of workers, and at most ``window`` inputs
 are submitted ahead of the oldest unfinished one, so memory stays bounded on long bags.
 ``jobs == 1`` runs in this process: no pickling, no start-up cost.
+
+Stopping early (an interrupt, a consumer error, closing the generator) never waits for work whose
+result nobody will read: queued work is cancelled and the worker processes are killed, then
+joined, so the run ends promptly and leaves no process behind. The workers ignore SIGINT and
+SIGTERM from the moment they start (a terminal's Ctrl-C reaches the whole process group; the
+parent decides what stops, and how).
 """
 
 from __future__ import annotations
@@ -10,10 +16,11 @@ from __future__ import annotations
 import multiprocessing
 import os
 import signal
+import threading
 from collections import deque
 from collections.abc import Callable, Generator, Iterable, Iterator
 from concurrent.futures import Future, ProcessPoolExecutor
-from contextlib import contextmanager
+from contextlib import AbstractContextManager, contextmanager, nullcontext
 from typing import TypeVar
 
 InputT = TypeVar("InputT")
@@ -22,46 +29,102 @@ ResultT = TypeVar("ResultT")
 # Each worker is one registration at a time; pykdtree's OpenMP threads would only make the
 # workers fight over the cores (measured in docs/bag.md). Values a user set are respected.
 WORKER_ENVIRONMENT = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+_WORKER_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+_JOIN_SEC = 5.0  # a killed worker is gone in milliseconds; this only bounds the wait
 
 
 def ordered_map(
-    function: Callable[[InputT], ResultT], inputs: Iterable[InputT], jobs: int, window: int | None = None
+    function: Callable[[InputT], ResultT],
+    inputs: Iterable[InputT],
+    jobs: int,
+    window: int | None = None,
+    interruptible: Callable[[], AbstractContextManager[object]] = nullcontext,
 ) -> Generator[tuple[InputT, ResultT], None, None]:
     """Yield ``(input, function(input))`` in input order, computed by ``jobs`` processes.
 
-    ``function`` and the inputs must be picklable when ``jobs > 1``. Closing the generator
-    early (an interrupt, a consumer error) cancels everything not yet started.
+    ``function`` and the inputs must be picklable when ``jobs > 1``. ``interruptible`` wraps
+    every wait for a result (and, with one job, every call): the places where an urgent stop
+    may raise. Closing the generator early cancels and kills everything not yet yielded.
     """
     if jobs < 1:
         raise ValueError(f"jobs must be >= 1, got {jobs}")
     if jobs == 1:
         for item in inputs:
-            yield item, function(item)
+            with interruptible():
+                result = function(item)
+            yield item, result
         return
     window = window or 2 * jobs
     pending: deque[tuple[InputT, Future[ResultT]]] = deque()
-    with _worker_environment():
-        # spawn, not fork: a forked child would inherit the parent's OpenMP thread pool
-        # (already sized) and any threads the caller runs.
-        executor = ProcessPoolExecutor(
-            max_workers=jobs, mp_context=multiprocessing.get_context("spawn"), initializer=_ignore_interrupts
-        )
-        try:
-            for item in inputs:
+    # spawn, not fork: a forked child would inherit the parent's OpenMP thread pool (already
+    # sized) and any threads the caller runs.
+    executor = ProcessPoolExecutor(
+        max_workers=jobs, mp_context=multiprocessing.get_context("spawn"), initializer=_ignore_signals
+    )
+    completed = False
+    try:
+        for item in inputs:
+            with _starting_workers():  # with spawn, submit starts the workers (on demand)
                 pending.append((item, executor.submit(function, item)))
-                while len(pending) >= window:
-                    oldest, future = pending.popleft()
-                    yield oldest, future.result()
-            while pending:
+            while len(pending) >= window:
                 oldest, future = pending.popleft()
-                yield oldest, future.result()
+                with interruptible():
+                    result = future.result()
+                yield oldest, result
+        while pending:
+            oldest, future = pending.popleft()
+            with interruptible():
+                result = future.result()
+            yield oldest, result
+        completed = True
+    finally:
+        if completed:
+            executor.shutdown(wait=True)
+        else:
+            _stop_now(executor)
+
+
+def _stop_now(executor: ProcessPoolExecutor) -> None:
+    """Cancel queued work, kill the workers (their results are unwanted) and reap them."""
+    # ProcessPoolExecutor has no public kill before Python 3.14 (terminate_workers); its
+    # ``_processes`` map is what that method uses too.
+    processes = list(getattr(executor, "_processes", {}).values())
+    executor.shutdown(wait=False, cancel_futures=True)
+    for process in processes:
+        if process.is_alive():
+            process.kill()
+    for process in processes:
+        process.join(_JOIN_SEC)
+    executor.shutdown(wait=True)  # the pool's manager thread sees the dead workers and ends
+
+
+@contextmanager
+def _starting_workers() -> Iterator[None]:
+    """What a worker started now inherits: the worker environment, and SIGINT/SIGTERM ignored,
+    so a Ctrl-C reaching the process group while a worker is still starting up (before its
+    initializer runs) cannot print a traceback from it.
+
+    The signals are blocked first, so one meant for the parent meanwhile stays pending (Linux
+    does not ignore a blocked signal) and reaches the parent's handler once it is restored.
+    """
+    with _worker_environment():
+        if threading.current_thread() is not threading.main_thread():
+            yield  # signal handlers belong to the main thread
+            return
+        blocked = signal.pthread_sigmask(signal.SIG_BLOCK, _WORKER_SIGNALS)
+        handlers = {signum: signal.signal(signum, signal.SIG_IGN) for signum in _WORKER_SIGNALS}
+        try:
+            yield
         finally:
-            executor.shutdown(wait=True, cancel_futures=True)
+            for signum, handler in handlers.items():
+                signal.signal(signum, handler if handler is not None else signal.SIG_DFL)
+            signal.pthread_sigmask(signal.SIG_SETMASK, blocked)
 
 
-def _ignore_interrupts() -> None:
-    """Ctrl-C reaches the whole process group; only the parent decides what stops, and how."""
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+def _ignore_signals() -> None:
+    """Worker initializer: only the parent decides what stops (it kills workers it no longer needs)."""
+    for signum in _WORKER_SIGNALS:
+        signal.signal(signum, signal.SIG_IGN)
 
 
 @contextmanager

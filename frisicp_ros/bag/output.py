@@ -8,6 +8,7 @@ target name only ever holds a complete, readable bag.
 from __future__ import annotations
 
 import json
+import math
 import os
 import shutil
 import sys
@@ -20,7 +21,7 @@ from rosbags.typesys import Stores, get_typestore
 
 from frisicp_ros.bag.pairs import BagPair
 from frisicp_ros.stream.outputs import OUTPUT_TOPICS, MessageTypes, result_summary, rosbags_message_types
-from frisicp_ros.stream.pipeline import PairOutcome, Rejected
+from frisicp_ros.stream.pipeline import PairOutcome, Registered, Rejected
 
 
 class OutputError(Exception):
@@ -28,7 +29,12 @@ class OutputError(Exception):
 
 
 def pair_record(pair: BagPair, outcome: PairOutcome) -> dict[str, object]:
-    """One JSON line: which clouds, then the registration (``ok`` false: why it was rejected)."""
+    """One JSON line: which clouds, then the registration.
+
+    ``ok`` is true only for a pose to use: registered and ``reliable``. Otherwise ``reason`` says
+    why: a rejected pair (also in ``rejection``, with ``rejected_input``) or an implausible result
+    (its numbers are still given, for diagnosis).
+    """
     record: dict[str, object] = {
         "pair": pair.index,
         "stamp_ns": pair.data.bag_ns,  # bag (receive) time of the data cloud
@@ -36,15 +42,26 @@ def pair_record(pair: BagPair, outcome: PairOutcome) -> dict[str, object]:
         "model_stamp_ns": pair.model.bag_ns,
         "model_frame": outcome.model_frame,
         "data_frame": outcome.data_frame,
-        "ok": not isinstance(outcome, Rejected),
+        "ok": isinstance(outcome, Registered) and outcome.reliable,
     }
     if isinstance(outcome, Rejected):
-        record["rejection"] = outcome.reason
+        record.update(reliable=False, reason=outcome.reason, rejection=outcome.reason)
         record["rejected_input"] = outcome.input
         return record
     record.update(result_summary(outcome.result))
     record["iterations_per_level"] = list(outcome.result.iterations)
     return record
+
+
+def json_ready(value: object) -> object:
+    """``value`` with every non-finite float as None: NaN and Infinity are not JSON."""
+    if isinstance(value, float):
+        return value if math.isfinite(value) else None
+    if isinstance(value, dict):
+        return {key: json_ready(item) for key, item in value.items()}
+    if isinstance(value, list | tuple):
+        return [json_ready(item) for item in value]
+    return value
 
 
 class JsonLines:
@@ -63,7 +80,7 @@ class JsonLines:
 
     def write(self, record: Mapping[str, object]) -> None:
         try:
-            self.stream.write(json.dumps(record) + "\n")
+            self.stream.write(json.dumps(json_ready(record), allow_nan=False) + "\n")
             self.stream.flush()
         except BrokenPipeError:
             # `frisicp bag ... | head`: the reader left. Point stdout at /dev/null so Python's own

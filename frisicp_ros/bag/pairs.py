@@ -20,7 +20,7 @@ from typing import Any
 
 import numpy as np
 
-from frisicp_ros.bag.reader import BagError, read_messages
+from frisicp_ros.bag.reader import BagError, damage_of, read_messages
 from frisicp_ros.stream.pairing import Pairer
 from frisicp_ros.stream.pointcloud2 import CloudParts, layout_of
 from frisicp_ros.stream.settings import PipelineSettings
@@ -132,3 +132,5 @@ class PairReading:
                     index += 1
         except BagError as err:
             self.stopped = str(err)
+            return
+        self.stopped = damage_of(self.reader)  # a damaged bag read up to the damage

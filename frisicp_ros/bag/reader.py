@@ -9,13 +9,16 @@ ending the whole read.
 from __future__ import annotations
 
 import contextlib
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Protocol
 
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
+
+from frisicp_ros.bag.salvage import SalvagedBag, salvage
 
 POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
 # ROS 1 bags name the same type without "/msg/"; AnyReader keeps the bag's spelling.
@@ -70,18 +73,51 @@ def bag_paths(path: Path) -> list[Path]:
     return [path]
 
 
+class Bag(Protocol):
+    """What frisicp reads from a bag: rosbags' AnyReader, or a SalvagedBag of a damaged one."""
+
+    @property
+    def topics(self) -> Mapping[str, Any]: ...  # name -> info with msgtype, msgcount
+
+    @property
+    def connections(self) -> Sequence[Any]: ...  # each with topic, msgtype
+
+    @property
+    def start_time(self) -> int: ...
+
+    @property
+    def end_time(self) -> int: ...
+
+    @property
+    def message_count(self) -> int: ...
+
+    def messages(self, connections: Any = ...) -> Iterator[tuple[Any, int, bytes]]: ...
+
+    def deserialize(self, rawdata: bytes, typ: str) -> object: ...
+
+    def close(self) -> None: ...
+
+
 @contextmanager
-def open_bag(path: str | Path) -> Iterator[AnyReader]:
+def open_bag(path: str | Path) -> Iterator[Bag]:
     """Open any bag for reading, or raise ``BagError``; messages are deserialized with
     the bag's own type definitions, or Jazzy's for bags recorded without them (rosbag2 < Iron).
+
+    A bag rosbags refuses as damaged (cut off: no MCAP footer, no ROS 1 index, SQLite pages
+    missing) is read up to the damage instead (``frisicp_ros.bag.salvage``); its ``damage``
+    attribute says what was lost (:func:`damage_of`).
     """
     path = Path(path)
     paths = bag_paths(path)
+    reader: Bag
     try:
         reader = AnyReader(paths, default_typestore=get_typestore(Stores.ROS2_JAZZY))
         reader.open()
     except Exception as err:  # noqa: BLE001 - sqlite3, mcap, yaml, struct, lz4... all mean "unreadable"
-        raise BagError(f"{path}: cannot open the bag ({describe(err)}){repair_hint(err)}") from None
+        salvaged = salvage(path)
+        if salvaged is None:
+            raise BagError(f"{path}: cannot open the bag ({describe(err)}){repair_hint(err)}") from None
+        reader = salvaged
     try:
         yield reader
     finally:
@@ -90,7 +126,16 @@ def open_bag(path: str | Path) -> Iterator[AnyReader]:
             reader.close()
 
 
-def topic_summaries(reader: AnyReader) -> list[TopicSummary]:
+def damage_of(reader: Bag) -> str | None:
+    """What made the bag unreadable past some point (None: an intact bag)."""
+    if isinstance(reader, SalvagedBag):
+        return (
+            f"the bag is damaged: {reader.damage}; its {reader.message_count} messages before that were read"
+        )
+    return None
+
+
+def topic_summaries(reader: Bag) -> list[TopicSummary]:
     """Topics sorted by name with their type and message count."""
     return [
         TopicSummary(name, info.msgtype or "(several types)", info.msgcount)
@@ -98,11 +143,11 @@ def topic_summaries(reader: AnyReader) -> list[TopicSummary]:
     ]
 
 
-def pointcloud2_topics(reader: AnyReader) -> list[str]:
+def pointcloud2_topics(reader: Bag) -> list[str]:
     return [topic.name for topic in topic_summaries(reader) if topic.is_pointcloud2]
 
 
-def require_pointcloud2_topic(reader: AnyReader, topic: str) -> None:
+def require_pointcloud2_topic(reader: Bag, topic: str) -> None:
     """Raise ``BagError`` unless ``topic`` is in the bag and carries PointCloud2 messages."""
     topics = {summary.name: summary for summary in topic_summaries(reader)}
     if topic not in topics:
@@ -113,7 +158,7 @@ def require_pointcloud2_topic(reader: AnyReader, topic: str) -> None:
         raise BagError(f"topic {topic} carries {topics[topic].msgtype}, not {POINTCLOUD2}")
 
 
-def read_messages(reader: AnyReader, topics: Sequence[str]) -> Iterator[BagMessage]:
+def read_messages(reader: Bag, topics: Sequence[str]) -> Iterator[BagMessage]:
     """Messages of ``topics`` in bag order.
 
     A message that fails to deserialize is yielded with its ``error`` (the caller decides);

@@ -1,30 +1,39 @@
 """One run of the bag mode: the pairs of an open bag through the stream loop into JSONL and a
 result bag, with a progress bar and a summary on stderr.
 
-Ctrl-C, a damaged message, a full disk or a closed results pipe stop the run; everything
-registered before stays written (the result bag is finished and renamed). The exit code says
-how it ended: 0 done, 1 stopped early by the bag or an output, 130 interrupted.
+Ctrl-C or SIGTERM (``frisicp_ros.bag.stop``), a damaged message, a full disk or a closed results
+pipe stop the run; everything registered before stays written (the result bag is finished and
+renamed). The exit code says how it ended: 0 the bag was read to its end (rejected and unreliable
+pairs are marked in the JSONL and counted in the summary), 1 stopped early by the bag or an
+output, 130 interrupted (SIGINT), 143 terminated (SIGTERM).
 """
 
 from __future__ import annotations
 
 import functools
-import signal
 import statistics
 import sys
-import threading
 import time
 from collections.abc import Callable
 from concurrent.futures.process import BrokenProcessPool
+from contextlib import AbstractContextManager
 from dataclasses import dataclass, field
-from types import FrameType
+from typing import Any
 
 from tqdm import tqdm
 
 from frisicp_ros.bag.jobs import ordered_map
 from frisicp_ros.bag.output import JsonLines, OutputError, ResultBag, pair_record
 from frisicp_ros.bag.pairs import BagPair, PairReading
-from frisicp_ros.stream.loop import IndependentRegistrar, Registrar, SequentialRegistrar, run_stream
+from frisicp_ros.bag.stop import StopRequest
+from frisicp_ros.stream.loop import (
+    ChunkRegistrar,
+    IndependentRegistrar,
+    PairMapper,
+    SequentialRegistrar,
+    in_chunks,
+    run_stream,
+)
 from frisicp_ros.stream.outputs import ALWAYS_PUBLISHED, build_outputs
 from frisicp_ros.stream.pipeline import PairOutcome, Registered
 from frisicp_ros.stream.settings import PipelineSettings
@@ -45,8 +54,10 @@ class RunStats:
     started: float = field(default_factory=time.perf_counter)
     pairs: int = 0
     rejected: int = 0
+    unreliable: int = 0  # registered, but the result failed the plausibility verdict
+    first_unreliable: str = ""
     converged: int = 0
-    rms: list[float] = field(default_factory=list)
+    rms: list[float] = field(default_factory=list)  # of the reliable results
     register_seconds: float = 0.0
     last: str = "before the first pair"
 
@@ -58,6 +69,10 @@ class RunStats:
             self.rejected += 1
             return
         self.converged += outcome.result.converged
+        if not outcome.reliable:
+            self.unreliable += 1
+            self.first_unreliable = self.first_unreliable or f"pair {pair.index}: {outcome.reason}"
+            return
         self.rms.append(outcome.result.rms)
 
     def summary(self, unpaired: int) -> str:
@@ -65,56 +80,78 @@ class RunStats:
         median = f"{statistics.median(self.rms):.6g}" if self.rms else "n/a"
         rate = f", {self.pairs / seconds:.2f} pairs/s" if seconds > 0 and self.pairs else ""
         text = (
-            f"pairs {self.pairs} (rejected {self.rejected}), converged {self.converged}, "
-            f"median RMS {median}, time {seconds:.2f} s{rate}"
+            f"pairs {self.pairs} (rejected {self.rejected}, unreliable {self.unreliable}), "
+            f"converged {self.converged}, median RMS {median}, time {seconds:.2f} s{rate}"
         )
         if unpaired:
             text += f"; {unpaired} data clouds found no model"
+        if self.unreliable:
+            text += (
+                f'; {self.unreliable} implausible results are marked "reliable": false and left out'
+                f" of the result bag (first: {self.first_unreliable})"
+            )
         return text
 
 
-class InterruptRequest:
-    """Ctrl-C as a request: the pair in hand is finished and written to every output (so the
-    JSONL and the result bag hold the same pairs), then the run stops. A second Ctrl-C stops at
-    once. Only in the main thread, where Python delivers signals; elsewhere Ctrl-C is as usual.
+# With --jobs N > 1 and warm start, pairs go to the workers in chunks of this many consecutive
+# pairs; each chunk is warm-started within itself (its first pair starts cold).
+WARM_START_CHUNK = 8
+
+
+def registration_plan(
+    settings: PipelineSettings, jobs: int, interruptible: Callable[[], AbstractContextManager[object]]
+) -> tuple[Any, PairMapper[Any, BagPair], str | None]:
+    """(registrar, mapper, notice) for ``jobs`` processes.
+
+    One job: one pipeline for the whole bag, every pair warm-started from the one before, as in
+    the node. Several jobs without warm start: independent pairs, exactly the results of one job.
+    Several jobs with warm start: chunks of consecutive pairs, warm-started within each chunk;
+    the notice says so (results can differ from one job's in the last digits).
     """
-
-    def __init__(self) -> None:
-        self.requested = False
-        self._previous: Callable[[int, FrameType | None], object] | int | None = None
-
-    def __enter__(self) -> InterruptRequest:
-        if threading.current_thread() is threading.main_thread():
-            self._previous = signal.signal(signal.SIGINT, self._on_interrupt)
-        return self
-
-    def _on_interrupt(self, signum: int, frame: object) -> None:
-        if self.requested:
-            raise KeyboardInterrupt
-        self.requested = True
-
-    def __exit__(self, *exc_info: object) -> None:
-        if self._previous is not None:
-            signal.signal(signal.SIGINT, self._previous)
-
-
-def registrar_for(settings: PipelineSettings, jobs: int) -> Registrar[BagPair]:
-    """Warm start chains each pair to the one before (one pipeline, one process); without it
-    every pair gets a fresh pipeline, so ``--jobs N`` gives exactly the results of ``--jobs 1``."""
-    if settings.warm_start:
-        if jobs > 1:
-            raise ValueError("warm start chains every pair to the one before it: it needs one job")
-        return SequentialRegistrar(settings)
-    return IndependentRegistrar(settings)
+    if jobs == 1:
+        one_job = functools.partial(ordered_map, jobs=1, interruptible=interruptible)
+        registrar = SequentialRegistrar(settings) if settings.warm_start else IndependentRegistrar(settings)
+        return registrar, one_job, None
+    parallel = functools.partial(ordered_map, jobs=jobs, interruptible=interruptible)
+    if not settings.warm_start:
+        return IndependentRegistrar(settings), parallel, None
+    notice = (
+        f"--jobs {jobs}: each worker warm-starts within chunks of {WARM_START_CHUNK} consecutive pairs"
+        " (the first of each starts cold); --jobs 1 warm-starts every pair, --no-warm-start none"
+    )
+    return ChunkRegistrar(settings), in_chunks(parallel, WARM_START_CHUNK), notice
 
 
 def register_bag(
     reading: PairReading, settings: PipelineSettings, jobs: int, to: Destinations, data_count: int
 ) -> int:
-    """Register every pair of ``reading``; returns the exit code (see the module docstring)."""
+    """Register every pair of ``reading``; returns the exit code (see the module docstring).
+
+    SIGINT and SIGTERM stop it as described in ``frisicp_ros.bag.stop``, from before the outputs
+    are created until after they are closed.
+    """
+    with StopRequest() as stop:
+        return _register_bag(reading, settings, jobs, to, data_count, stop)
+
+
+def _register_bag(
+    reading: PairReading,
+    settings: PipelineSettings,
+    jobs: int,
+    to: Destinations,
+    data_count: int,
+    stop: StopRequest,
+) -> int:
     topics = ALWAYS_PUBLISHED + (("aligned",) if settings.publish_aligned else ())
     results = JsonLines(to.jsonl)
-    result_bag = ResultBag(to.result_bag, to.prefix, topics) if to.result_bag else None
+    try:
+        result_bag = ResultBag(to.result_bag, to.prefix, topics) if to.result_bag else None
+    except OutputError:
+        results.close()
+        raise
+    registrar, mapper, notice = registration_plan(settings, jobs, stop.interruptible)
+    if notice:
+        print(f"frisicp bag: {notice}", file=sys.stderr)
     stats = RunStats()
     progress = tqdm(
         total=data_count,
@@ -129,25 +166,22 @@ def register_bag(
 
     def emit(pair: BagPair, outcome: PairOutcome) -> None:
         results.write(pair_record(pair, outcome))
-        if result_bag is not None and isinstance(outcome, Registered):
+        if result_bag is not None and isinstance(outcome, Registered) and outcome.reliable:
             result_bag.write(
                 pair.data.bag_ns, build_outputs(outcome, pair.data_cloud, result_bag.types, topics)
             )
         stats.add(pair, outcome)
         progress.update(pair.data.ordinal + 1 - progress.n)
-        if interrupt.requested:
-            raise KeyboardInterrupt
+        stop.check()
 
     try:
-        with InterruptRequest() as interrupt:
-            mapper = functools.partial(ordered_map, jobs=jobs)
-            run_stream(reading, registrar_for(settings, jobs), emit, mapper)
+        run_stream(reading, registrar, emit, mapper)
         if reading.stopped is not None:
             stopped, code = reading.stopped, 1
         else:
             progress.update(data_count - progress.n)
-    except KeyboardInterrupt:
-        stopped, code = "interrupted", 130
+    except KeyboardInterrupt:  # StopRequested, or a Ctrl-C outside the main thread
+        stopped, code = (stop.description, stop.exit_code) if stop.requested else ("interrupted", 130)
     except BrokenProcessPool:
         stopped, code = "a worker process died (out of memory?)", 1
     except OutputError as err:  # a full disk, a closed pipe: what was written stays

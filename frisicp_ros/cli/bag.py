@@ -3,8 +3,10 @@
 Pairs are formed and registered by the same code as the live node (``pairing``, ``pipeline``,
 ``outputs``). Results go to JSONL (stdout by default) as they are computed and, with
 ``--out-bag``, into a rosbag2 with the node's output topics. Progress and the summary go to
-stderr. Exit codes: 0 done, 1 the bag stopped being readable part-way (results so far kept),
-2 bad arguments or an unreadable bag, 130 interrupted (results so far kept).
+stderr. Exit codes: 0 the bag was read to its end (rejected or unreliable pairs are marked per
+line and counted in the summary), 1 the bag stopped being readable part-way or an output failed
+(results so far kept), 2 bad arguments or an unreadable bag, 130 interrupted (Ctrl-C), 143
+terminated (SIGTERM) (results so far kept in both).
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ from frisicp_ros.cli.options import add_options, given_values
 from frisicp_ros.stream.settings import PipelineSettings, Surface, settings_from
 
 NAME = "bag"
+MAX_JOBS = 256  # processes; more only exhausts memory (each holds its clouds and a KD-tree)
 SUMMARY = "register the cloud pairs of a bag offline (no ROS installation needed)"
 DESCRIPTION = (
     "Register every (model, data) PointCloud2 pair of a rosbag2 folder, .db3 or "
@@ -47,7 +50,8 @@ def configure(parser: argparse.ArgumentParser) -> None:
         type=int,
         default=1,
         metavar="N",
-        help="registration processes; results stay in bag order. Needs --no-warm-start when > 1 (default 1)",
+        help=f"registration processes, 1..{MAX_JOBS}; results stay in bag order. With warm start each"
+        " worker warm-starts within chunks of consecutive pairs (default 1)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_options(parser, Surface.BAG)
@@ -63,13 +67,8 @@ def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
 def check_arguments(args: argparse.Namespace, settings: PipelineSettings) -> None:
     if args.model_topic == args.data_topic:
         raise CommandError("--model-topic and --data-topic must be different topics")
-    if args.jobs < 1:
-        raise CommandError(f"--jobs must be >= 1, got {args.jobs}")
-    if settings.warm_start and args.jobs > 1:
-        raise CommandError(
-            "warm start (--warm-start, the default as in the node) chains every pair to the one before it:"
-            f" it needs --jobs 1; add --no-warm-start for --jobs {args.jobs}"
-        )
+    if not 1 <= args.jobs <= MAX_JOBS:
+        raise CommandError(f"--jobs must be in [1, {MAX_JOBS}], got {args.jobs}")
     if args.out_bag and Path(args.out_bag).exists():  # before --out is truncated or the bag read
         raise CommandError(f"{args.out_bag} exists already; choose a new --out-bag folder")
 

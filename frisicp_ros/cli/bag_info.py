@@ -4,8 +4,9 @@ from __future__ import annotations
 
 import argparse
 import json
+import sys
 
-from frisicp_ros.bag.reader import BagError, open_bag, topic_summaries
+from frisicp_ros.bag.reader import BagError, damage_of, open_bag, topic_summaries
 from frisicp_ros.cli.command import CommandError
 
 NAME = "bag-info"
@@ -25,6 +26,7 @@ def run(args: argparse.Namespace) -> int:
         with open_bag(args.input) as reader:
             topics = topic_summaries(reader)
             start_ns, end_ns, count = reader.start_time, reader.end_time, reader.message_count
+            damage = damage_of(reader)
     except BagError as err:
         raise CommandError(str(err)) from None
     # An empty bag reports start > end (rosbags' sentinels); say 0 rather than a negative span.
@@ -41,15 +43,16 @@ def run(args: argparse.Namespace) -> int:
                         {"name": t.name, "type": t.msgtype, "count": t.count, "pointcloud2": t.is_pointcloud2}
                         for t in topics
                     ],
+                    "damage": damage,
                 }
             )
         )
-        return 0
+        return 1 if damage else 0
     print(f"bag       {args.input}")
     print(f"messages  {count}   duration {duration_sec:.3f} s")
     if not topics:
         print("topics    none")
-        return 0
+        return 1 if damage else 0
     name_width = max(len(t.name) for t in topics)
     type_width = max(len(t.msgtype) for t in topics)
     print(f"{'topic':<{name_width}}  {'type':<{type_width}}  {'count':>7}")
@@ -58,4 +61,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{topic.name:<{name_width}}  {topic.msgtype:<{type_width}}  {topic.count:>7}{mark}")
     clouds = [t.name for t in topics if t.is_pointcloud2]
     print(f"PointCloud2 topics: {', '.join(clouds) if clouds else 'none'}")
+    if damage:
+        print(f"frisicp bag-info: {damage} (counted above)", file=sys.stderr)
+        return 1
     return 0

@@ -16,7 +16,10 @@ from frisicp_ros.stream.settings import Surface, Value, algorithm_values, regist
 
 NAME = "register"
 SUMMARY = "register DATA onto MODEL (files: .ply .pcd .xyz .csv .txt .npy)"
-DESCRIPTION = "Find s, R, t with MODEL ≈ s·R·DATA + t and print them."
+DESCRIPTION = (
+    "Find s, R, t with MODEL ≈ s·R·DATA + t and print them. Exit code 1 when the result did not"
+    " converge or failed the plausibility verdict (printed with the reason), 2 for unusable input."
+)
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -66,9 +69,10 @@ def run(args: argparse.Namespace) -> int:
     except (CloudFileError, ValueError) as err:
         raise CommandError(str(err)) from None
     summary = result_summary(result)
+    usable = result.converged and result.reliable
     if args.json:
         print(json.dumps(summary))
-        return 0
+        return 0 if usable else 1
     with np.printoptions(precision=6, suppress=True):
         print(f"method       {result.method.value}")
         print(f"scale        {result.similarity.scale:.9g}")
@@ -86,4 +90,4 @@ def run(args: argparse.Namespace) -> int:
     print(f"converged    {result.converged}")
     print(f"reliable     {result.reliable}" + (f"  ({result.reason})" if result.reason else ""))
     print(f"seconds      {result.seconds:.4f}")
-    return 0 if result.converged else 1
+    return 0 if usable else 1

@@ -40,10 +40,10 @@ from rclpy.qos import (
 from sensor_msgs.msg import PointCloud2
 from std_srvs.srv import Trigger
 
-from frisicp_ros.node import parameters
+from frisicp_ros.node import parameters, shutdown
 from frisicp_ros.node.newest_slot import NewestWinsSlot
 from frisicp_ros.node.status import NodeStatus
-from frisicp_ros.stream.loop import SequentialRegistrar, run_stream
+from frisicp_ros.stream.loop import SequentialRegistrar, run_stream, serial_map
 from frisicp_ros.stream.outputs import (
     ALWAYS_PUBLISHED,
     OUTPUT_TOPICS,
@@ -52,7 +52,7 @@ from frisicp_ros.stream.outputs import (
     rclpy_message_types,
 )
 from frisicp_ros.stream.pairing import Pairer
-from frisicp_ros.stream.pipeline import PairOutcome, Rejected
+from frisicp_ros.stream.pipeline import PairOutcome, Rejected, describe
 from frisicp_ros.stream.pointcloud2 import stamp_ns
 from frisicp_ros.stream.settings import settings_from
 
@@ -61,8 +61,10 @@ if TYPE_CHECKING:
 
 NODE_NAME = "frisicp"
 _WARN_THROTTLE_SEC = 2.0
+_NO_MODEL_WARN_SEC = 5.0
 _WORKER_POLL_SEC = 0.2  # how often an idle worker looks at the stop flag
 _WORKER_JOIN_SEC = 10.0  # a running registration is not interruptible; wait for it this long
+_WORKER_RESTARTS = 100  # loop failures survived before the worker gives up (and says ERROR)
 
 SUBSCRIPTION_QOS = {
     "sensor_data": qos_profile_sensor_data,  # best effort, volatile, depth 5
@@ -98,6 +100,7 @@ class RegistrationNode(Node):
         self._pairer_lock = threading.Lock()
         self._pairer: Pairer[PointCloud2, PointCloud2] = Pairer(settings.pairing, settings.sync_tolerance)
         self._slot: NewestWinsSlot[PendingPair] = NewestWinsSlot()
+        self._models_received = 0  # since start or ~/reset (under the pairer lock)
         self._status = NodeStatus()
 
         self._output_publishers = {
@@ -127,6 +130,7 @@ class RegistrationNode(Node):
         self.create_timer(float(values["diagnostics_period"]), self._publish_diagnostics)
 
         self._stopping = threading.Event()
+        self._handled_pairs = 0  # pairs the worker took to the end (for its restart rule)
         self._worker = threading.Thread(target=self._work, name="frisicp-registration", daemon=True)
         if self._replay is not None:
             self._replay.start()
@@ -142,6 +146,7 @@ class RegistrationNode(Node):
     def _on_model(self, msg: PointCloud2) -> None:
         self._status.count_input("model")
         with self._pairer_lock:
+            self._models_received += 1
             pairs = self._pairer.add_model(stamp_ns(msg), msg)
         self._hand_over(pairs)
 
@@ -149,7 +154,24 @@ class RegistrationNode(Node):
         self._status.count_input("data")
         with self._pairer_lock:
             pairs = self._pairer.add_data(stamp_ns(msg), msg)
+            no_model = self._models_received == 0
+        if no_model:
+            self._warn_no_model()
         self._hand_over(pairs)
+
+    def _warn_no_model(self) -> None:
+        """Data but never a model: most often a latched map missed by a volatile subscription."""
+        qos = self.get_parameter("model_qos").value
+        hint = (
+            "is the model published?"
+            if qos == "transient_local"
+            else "a map published once (latched) needs model_qos: transient_local"
+        )
+        self.get_logger().warning(
+            f"data clouds arrive on '{self.resolve_topic_name('data')}' but no model cloud has arrived on"
+            f" '{self.resolve_topic_name('model')}' (model_qos: {qos}); {hint}",
+            throttle_duration_sec=_NO_MODEL_WARN_SEC,
+        )
 
     def _hand_over(self, pairs: list[tuple[PointCloud2, PointCloud2]]) -> None:
         now = time.monotonic()
@@ -159,6 +181,7 @@ class RegistrationNode(Node):
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response) -> Trigger.Response:
         with self._pairer_lock:
             self._pairer.reset()
+            self._models_received = 0
         self._slot.clear()
         self._registrar.request_reset()
         response.success = True
@@ -179,21 +202,40 @@ class RegistrationNode(Node):
     def _apply_parameters(self, changes: list[Parameter]) -> None:
         settings = settings_from(parameters.current_values(self))
         if any(p.name in ("pairing", "sync_tolerance") for p in changes):
-            with self._pairer_lock:
-                self._pairer = Pairer(settings.pairing, settings.sync_tolerance)
+            with self._pairer_lock:  # the stored (latched) model stays
+                self._pairer.reconfigure(settings.pairing, settings.sync_tolerance)
         self._registrar.request_settings(settings)
         self.get_logger().info("parameters changed: " + ", ".join(f"{p.name}={p.value!r}" for p in changes))
 
     # --- the worker -----------------------------------------------------------------------------
 
     def _work(self) -> None:
-        """The live stream loop: the newest pending pair, registered and published, until stopped."""
-        try:
-            run_stream(self._pending_pairs(), self._registrar, self._publish_pending)
-        except Exception:
-            if self.context.ok() and not self._stopping.is_set():
-                raise
-            # Shutting down: the publishers went away under the last pair.
+        """The live stream loop: the newest pending pair, registered and published, until stopped.
+
+        Per-pair failures are handled inside (the pipeline and ``publish_outcome`` never raise);
+        should the loop itself fail (a bug), it is reported and started again, and if even that
+        fails the diagnostics say ERROR instead of "registering".
+        """
+        restarts, handled_before = 0, -1
+        while not self._stopping.is_set():
+            try:
+                run_stream(self._pending_pairs(), self._registrar, self._publish_pending, serial_map)
+                return
+            except Exception as err:  # noqa: BLE001 - reported; a silent dead worker is worse
+                if self._stopping.is_set():
+                    return
+                # Give up only when failures come back to back, without a pair handled between.
+                restarts = restarts + 1 if self._handled_pairs == handled_before else 1
+                handled_before = self._handled_pairs
+                self._status.record_error(f"stream loop: {describe(err)}")
+                self.get_logger().error(
+                    f"registration loop failed ({describe(err)}); restarting",
+                    throttle_duration_sec=_WARN_THROTTLE_SEC,
+                )
+                if restarts > _WORKER_RESTARTS:
+                    self._status.record_worker_stopped(describe(err))
+                    self.get_logger().fatal(f"registration worker stopped: {describe(err)}")
+                    return
 
     def _pending_pairs(self) -> Iterator[PendingPair]:
         while not self._stopping.is_set():
@@ -204,6 +246,7 @@ class RegistrationNode(Node):
                 yield pending
 
     def _publish_pending(self, pending: PendingPair, outcome: PairOutcome) -> None:
+        self._handled_pairs += 1
         self.publish_outcome(outcome, pending.data_cloud, pending.received_at)
 
     # --- outputs --------------------------------------------------------------------------------
@@ -211,14 +254,35 @@ class RegistrationNode(Node):
     def publish_outcome(
         self, outcome: PairOutcome, data_cloud: PointCloud2, received_at: float | None = None
     ) -> None:
-        """Publish one pair's outputs (or warn about its rejection) and count it.
+        """Publish one pair's outputs (or warn about its rejection or implausible result) and
+        count it. Never raises: a failure to publish one pair is counted, logged and survived.
 
         The single publishing path: the live stream loop calls it, and so does the bag replay
         (``received_at`` None: no latency is recorded). Runs in the stream loop's thread.
         """
+        try:
+            self._publish(outcome, data_cloud, received_at)
+        except Exception as err:  # noqa: BLE001 - the worker must outlive any one pair
+            if self._stopping.is_set() or not self.context.ok():
+                return  # shutting down: the publishers went away under the last pair
+            self._status.record_error(describe(err))
+            self.get_logger().error(
+                f"publishing the pair stamped {outcome.stamp} failed: {describe(err)}",
+                throttle_duration_sec=_WARN_THROTTLE_SEC,
+            )
+
+    def _publish(self, outcome: PairOutcome, data_cloud: PointCloud2, received_at: float | None) -> None:
         started = time.perf_counter()
         if isinstance(outcome, Rejected):
             self.get_logger().warning(f"skipped: {outcome.reason}", throttle_duration_sec=_WARN_THROTTLE_SEC)
+            self._status.record(outcome, None, 0.0)
+            return
+        if not outcome.reliable:
+            self.get_logger().warning(
+                f"implausible result not published (scale {outcome.result.similarity.scale:.6g}):"
+                f" {outcome.reason}",
+                throttle_duration_sec=_WARN_THROTTLE_SEC,
+            )
             self._status.record(outcome, None, 0.0)
             return
         topics: tuple[str, ...] = ALWAYS_PUBLISHED
@@ -231,12 +295,10 @@ class RegistrationNode(Node):
             self._output_publishers[suffix].publish(message)
         latency = None if received_at is None else time.monotonic() - received_at
         self._status.record(outcome, latency, time.perf_counter() - started)
-        if not outcome.result.converged:
-            self.get_logger().warning(
-                "registration did not converge (published anyway)", throttle_duration_sec=_WARN_THROTTLE_SEC
-            )
 
     def _publish_diagnostics(self) -> None:
+        if self._replay is None and not self._worker.is_alive() and not self._stopping.is_set():
+            self._status.record_worker_stopped("the registration thread has ended")
         with self._pairer_lock:
             unpaired, has_model = self._pairer.unpaired_data, self._pairer.latest_model is not None
         report = self._status.report(
@@ -267,21 +329,30 @@ class RegistrationNode(Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Console script ``register_node``; Ctrl-C and external shutdown end it quietly (code 0)."""
+    """Console script ``register_node``; SIGINT, SIGTERM (any number of them) and external
+    shutdown end it quietly with code 0 (see ``shutdown``)."""
+    signals = shutdown.install()  # before rclpy.init, which chains its handlers to this one
     rclpy.init(args=args)
     node: RegistrationNode | None = None
     try:
-        node = RegistrationNode()
-        rclpy.spin(node)
+        if not signals.requested:
+            node = RegistrationNode()
+            rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (ValueError, ParameterException) as err:  # e.g. a bad --params-file value
-        rclpy.logging.get_logger(NODE_NAME).fatal(f"invalid parameters: {err}")
-        return 2
+        if not signals.requested:
+            rclpy.logging.get_logger(NODE_NAME).fatal(f"invalid parameters: {err}")
+            return 2
+    except Exception:
+        if not signals.requested:
+            raise
+        # A signal during start-up: rclpy's context went away under the constructor.
     finally:
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        shutdown.ignore_from_now_on()
     return 0
 
 

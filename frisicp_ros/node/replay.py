@@ -26,7 +26,7 @@ from rclpy.node import Node
 
 from frisicp_ros.bag.pairs import BagPair, PairReading
 from frisicp_ros.bag.reader import BagError, open_bag, require_pointcloud2_topic
-from frisicp_ros.stream.loop import SequentialRegistrar, run_stream
+from frisicp_ros.stream.loop import SequentialRegistrar, run_stream, serial_map
 from frisicp_ros.stream.pipeline import PairOutcome
 from frisicp_ros.stream.settings import Value
 
@@ -130,7 +130,7 @@ class BagReplay:
                 reading = PairReading.paired_as(
                     self.registrar.settings, reader, options.model_topic, options.data_topic
                 )
-                run_stream(reading, self.registrar, self._emit)
+                run_stream(reading, self.registrar, self._emit, serial_map)
         except _Stopped:
             return
         except BagError as err:

@@ -3,6 +3,12 @@
 Callbacks count inputs, the worker records outcomes, the diagnostics timer takes a
 :class:`StatusReport` once per period. Rates are per period; latency percentiles are over the
 last ``window`` pairs.
+
+Every pair the worker takes ends in exactly one counter: "registered pairs" (a reliable result,
+published), "unreliable results" (registered but implausible: not published), "rejected ..."
+(no result) or "publish errors" (an exception while publishing). The level is never OK while the
+last pair failed in any of these ways, and ERROR after :data:`ERROR_AFTER_FAILURES` failures in a
+row or when the registration worker has stopped.
 """
 
 from __future__ import annotations
@@ -17,7 +23,7 @@ import numpy as np
 from frisicp_ros.stream.pipeline import PairOutcome, Registered, Rejected
 
 OK, WARN, ERROR = 0, 1, 2  # diagnostic_msgs/DiagnosticStatus levels
-ERROR_AFTER_REJECTIONS = 3  # consecutive rejected pairs before the status is ERROR
+ERROR_AFTER_FAILURES = 3  # consecutive failed pairs (rejected, unreliable, error) before ERROR
 
 
 @dataclass(frozen=True)
@@ -33,7 +39,13 @@ class NodeStatus:
         self._inputs: Counter[str] = Counter()  # since the last report
         self._rejected: Counter[str] = Counter()  # totals by 'model' | 'data' | 'pair'
         self._last_rejection = ""
-        self._consecutive_rejections = 0
+        self._unreliable = 0
+        self._last_unreliable = ""
+        self._publish_errors = 0
+        self._last_error = ""
+        self._consecutive_failures = 0
+        self._last_failure = ""  # what the level message says while failures go on
+        self._worker_stopped: str | None = None
         self._registered = 0
         self._registered_since_report = 0
         self._last_registered: Registered | None = None
@@ -52,9 +64,15 @@ class NodeStatus:
             if isinstance(outcome, Rejected):
                 self._rejected[outcome.input] += 1
                 self._last_rejection = outcome.reason
-                self._consecutive_rejections += 1
+                self._failed(f"pair rejected: {outcome.reason}")
                 return
-            self._consecutive_rejections = 0
+            if not outcome.reliable:
+                scale = outcome.result.similarity.scale
+                self._unreliable += 1
+                self._last_unreliable = f"scale {scale:.6g}: {outcome.reason}"
+                self._failed(f"result implausible, not published (scale {scale:.6g}): {outcome.reason}")
+                return
+            self._consecutive_failures = 0
             self._registered += 1
             self._registered_since_report += 1
             self._last_registered = outcome
@@ -62,6 +80,23 @@ class NodeStatus:
                 self._latency.append(latency)
             self._node_seconds.append(outcome.timings.convert_seconds + publish_seconds)
             self._core_seconds.append(outcome.timings.register_seconds)
+
+    def record_error(self, error: str) -> None:
+        """A pair whose publication raised ``error``; the worker goes on with the next pair."""
+        with self._lock:
+            self._publish_errors += 1
+            self._last_error = error
+            self._failed(f"publication failed: {error}")
+
+    def record_worker_stopped(self, error: str) -> None:
+        """The registration worker is gone (a bug): nothing will be registered any more."""
+        with self._lock:
+            if self._worker_stopped is None:  # the first reason is the one that explains
+                self._worker_stopped = error
+
+    def _failed(self, what: str) -> None:
+        self._consecutive_failures += 1
+        self._last_failure = what
 
     def report(self, dropped_pairs: int, unpaired_data: int, has_model: bool) -> StatusReport:
         with self._lock:
@@ -78,6 +113,10 @@ class NodeStatus:
                 "rejected data clouds": str(self._rejected["data"]),
                 "rejected pairs": str(self._rejected["pair"]),
                 "last rejection": self._last_rejection,
+                "unreliable results": str(self._unreliable),
+                "last unreliable result": self._last_unreliable,
+                "publish errors": str(self._publish_errors),
+                "last publish error": self._last_error,
             }
             values.update(self._latency_values())
             values.update(self._result_values())
@@ -120,12 +159,13 @@ class NodeStatus:
         }
 
     def _level(self, has_model: bool) -> tuple[int, str]:
-        if self._consecutive_rejections >= ERROR_AFTER_REJECTIONS:
-            return ERROR, f"last {self._consecutive_rejections} pairs rejected: {self._last_rejection}"
-        if self._consecutive_rejections:
-            return WARN, f"last pair rejected: {self._last_rejection}"
+        if self._worker_stopped is not None:
+            return ERROR, f"registration worker stopped: {self._worker_stopped}"
+        failures = self._consecutive_failures
+        if failures >= ERROR_AFTER_FAILURES:
+            return ERROR, f"last {failures} pairs failed; last: {self._last_failure}"
+        if failures:
+            return WARN, f"last {self._last_failure}"
         if self._last_registered is None:
             return WARN, "waiting for clouds" if has_model else "waiting for a model cloud"
-        if not self._last_registered.result.converged:
-            return WARN, "last registration did not converge"
         return OK, "registering"

@@ -11,12 +11,17 @@
 - :class:`IndependentRegistrar` gives every pair a fresh pipeline: results do not depend on the
   order or on which process computed them, so ``frisicp bag --jobs N`` can map it over worker
   processes (it pickles).
+- :class:`ChunkRegistrar` registers a chunk of consecutive pairs with one fresh pipeline, each
+  pair warm-started from the one before it within the chunk: ``frisicp bag --jobs N`` with warm
+  start maps it over chunks (:func:`in_chunks`), so the workers keep most of the warm start's
+  benefit while the chunks run in parallel.
 """
 
 from __future__ import annotations
 
+import itertools
 import threading
-from collections.abc import Callable, Generator, Iterable
+from collections.abc import Callable, Generator, Iterable, Iterator, Sequence
 from contextlib import closing
 from dataclasses import dataclass
 from typing import Any, Protocol, TypeVar
@@ -37,29 +42,28 @@ class CloudPair(Protocol):
 
 
 PairT = TypeVar("PairT", bound=CloudPair)
+RegistrarT = TypeVar("RegistrarT")
 Registrar = Callable[[PairT], "PairOutcome | None"]
+Registered_ = Generator[tuple[PairT, "PairOutcome | None"], None, None]
 # Maps a registrar over pairs, yielding (pair, outcome) in pair order: serially in this thread,
-# or over worker processes (frisicp_ros.bag.jobs.ordered_map).
-PairMapper = Callable[
-    [Registrar[PairT], Iterable[PairT]], Generator[tuple[PairT, "PairOutcome | None"], None, None]
-]
+# or over worker processes (frisicp_ros.bag.jobs.ordered_map), pair by pair or in chunks.
+PairMapper = Callable[[RegistrarT, Iterable[PairT]], Registered_[PairT]]
 
 
-def serial_map(
-    register: Registrar[PairT], pairs: Iterable[PairT]
-) -> Generator[tuple[PairT, PairOutcome | None], None, None]:
+def serial_map(register: Registrar[PairT], pairs: Iterable[PairT]) -> Registered_[PairT]:
     for pair in pairs:
         yield pair, register(pair)
 
 
 def run_stream(
     pairs: Iterable[PairT],
-    register: Registrar[PairT],
+    register: RegistrarT,
     emit: Callable[[PairT, PairOutcome], None],
-    mapper: PairMapper[PairT] = serial_map,
+    mapper: PairMapper[RegistrarT, PairT],
 ) -> None:
     """Register every pair and emit its outcome, in pair order, until ``pairs`` ends.
 
+    ``mapper`` applies ``register`` (``serial_map`` for a per-pair registrar in this thread).
     ``emit`` runs in the calling thread; an exception in it (or a KeyboardInterrupt) stops the
     loop and closes the mapper, which cancels work not yet started.
     """
@@ -67,6 +71,30 @@ def run_stream(
         for pair, outcome in registered:
             if outcome is not None:
                 emit(pair, outcome)
+
+
+ChunkMapper = Callable[
+    ["ChunkRegistrar", Iterable[list[PairT]]],
+    Generator[tuple[list[PairT], list[PairOutcome]], None, None],
+]
+
+
+def in_chunks(mapper: ChunkMapper[PairT], size: int) -> PairMapper[ChunkRegistrar, PairT]:
+    """A pair mapper that hands ``mapper`` chunks of ``size`` consecutive pairs."""
+
+    def mapped(register: ChunkRegistrar, pairs: Iterable[PairT]) -> Registered_[PairT]:
+        chunks = mapper(register, _batched(pairs, size))
+        with closing(chunks):
+            for chunk, outcomes in chunks:
+                yield from zip(chunk, outcomes, strict=True)
+
+    return mapped
+
+
+def _batched(items: Iterable[PairT], size: int) -> Iterator[list[PairT]]:
+    iterator = iter(items)
+    while chunk := list(itertools.islice(iterator, size)):
+        yield chunk
 
 
 class SequentialRegistrar:
@@ -120,6 +148,17 @@ class SequentialRegistrar:
         if self._reset_requested.is_set():
             self._reset_requested.clear()
             self._pipeline.reset()
+
+
+@dataclass(frozen=True)
+class ChunkRegistrar:
+    """Consecutive pairs with one fresh pipeline: warm start within the chunk, picklable."""
+
+    settings: PipelineSettings
+
+    def __call__(self, chunk: Sequence[CloudPair]) -> list[PairOutcome]:
+        pipeline = RegistrationPipeline(self.settings)
+        return [pipeline.process(pair.model_cloud, pair.data_cloud) for pair in chunk]
 
 
 @dataclass(frozen=True)

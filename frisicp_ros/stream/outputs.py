@@ -38,7 +38,8 @@ OUTPUT_TOPICS: dict[str, str] = {
     "similarity": "std_msgs/msg/Float64MultiArray",
     "aligned": "sensor_msgs/msg/PointCloud2",
 }
-# Every topic except ``aligned`` is produced for every registered pair.
+# Every topic except ``aligned`` is produced for every reliable registered pair; an unreliable
+# result (implausible, see frisicp_core.verdict) has no outputs: it is reported, not published.
 ALWAYS_PUBLISHED = ("transform", "scale", "rms", "similarity")
 _NEEDED_TYPES = (
     "builtin_interfaces/msg/Time",
@@ -65,9 +66,15 @@ class MessageTypes:
         return self.classes[type_name]
 
     def header(self, stamp_ns: int, frame_id: str) -> Any:
+        """A header at ``stamp_ns`` nanoseconds (normalised: 0 <= nanosec < 1e9)."""
         sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
-        stamp = self["builtin_interfaces/msg/Time"](sec=sec, nanosec=nanosec)
-        return self["std_msgs/msg/Header"](stamp=stamp, frame_id=frame_id)
+        return self.stamped_header((sec, nanosec), frame_id)
+
+    def stamped_header(self, stamp: tuple[int, int], frame_id: str) -> Any:
+        """A header with the (sec, nanosec) of a received stamp, copied as they are."""
+        sec, nanosec = stamp
+        time_msg = self["builtin_interfaces/msg/Time"](sec=int(sec), nanosec=int(nanosec))
+        return self["std_msgs/msg/Header"](stamp=time_msg, frame_id=frame_id)
 
     def point_cloud(self, parts: CloudParts, header: Any) -> Any:
         field_class = self["sensor_msgs/msg/PointField"]
@@ -180,13 +187,15 @@ def build_outputs(
     """
     if not isinstance(outcome, Registered):  # the type says so; untyped callers hear it too
         raise ValueError(f"rejected pair has no outputs: {getattr(outcome, 'reason', outcome)}")
+    if not outcome.reliable:  # the one gate in front of every publisher and result bag
+        raise ValueError(f"an unreliable result has no outputs: {outcome.reason}")
     unknown = set(topics) - set(OUTPUT_TOPICS)
     if unknown:
         raise ValueError(f"unknown output topics {sorted(unknown)}; known: {sorted(OUTPUT_TOPICS)}")
     similarity = outcome.result.similarity
     builders: dict[str, Callable[[], Any]] = {
         "transform": lambda: transform_stamped(
-            similarity, types.header(outcome.stamp_ns, outcome.model_frame), outcome.data_frame, types
+            similarity, types.stamped_header(outcome.stamp, outcome.model_frame), outcome.data_frame, types
         ),
         "scale": lambda: float64(similarity.scale, types),
         "rms": lambda: float64(outcome.result.rms, types),
@@ -195,14 +204,17 @@ def build_outputs(
             data_cloud,
             similarity,
             outcome.dims,
-            lambda parts: types.point_cloud(parts, types.header(outcome.stamp_ns, outcome.model_frame)),
+            lambda parts: types.point_cloud(parts, types.stamped_header(outcome.stamp, outcome.model_frame)),
         ),
     }
     return {topic: builders[topic]() for topic in topics}
 
 
 def result_summary(result: RegistrationResult) -> dict[str, object]:
-    """The result as JSON-ready values (``frisicp register --json`` and the bag mode's lines)."""
+    """The result as JSON-ready values (``frisicp register --json`` and the bag mode's lines).
+
+    ``reliable`` False (with ``reason``) marks a result that failed the plausibility checks.
+    """
     sim = result.similarity
     summary: dict[str, object] = {
         "scale": sim.scale,
@@ -211,6 +223,11 @@ def result_summary(result: RegistrationResult) -> dict[str, object]:
         "rms": result.rms,
         "iterations": sum(result.iterations),
         "converged": result.converged,
+        "reliable": result.reliable,
+        "reason": result.reason,
+        "overlap_forward": result.overlap_forward,
+        "overlap_backward": result.overlap_backward,
+        "warm_started": result.warm_started,
         "seconds": result.seconds,
     }
     if sim.dim == 3:

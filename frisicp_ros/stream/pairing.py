@@ -28,17 +28,35 @@ class Pairer(Generic[ModelT, DataT]):
     def __init__(
         self, mode: str = "latest_model", tolerance_sec: float = 0.05, buffer_size: int = 10
     ) -> None:
+        if buffer_size < 1:
+            raise ValueError(f"buffer_size must be >= 1, got {buffer_size}")
+        self._buffer_size = buffer_size
+        self._models: deque[tuple[int, ModelT]] = deque()
+        self._data: deque[tuple[int, DataT]] = deque(maxlen=buffer_size)
+        self.unpaired_data = 0  # data clouds that found no model (dropped)
+        self.mode = "latest_model"
+        self.tolerance_ns = 0
+        self.reconfigure(mode, tolerance_sec)
+
+    def reconfigure(self, mode: str, tolerance_sec: float) -> None:
+        """Change the mode or tolerance at run time, keeping what was received.
+
+        The stored models stay (a latched map is published once: dropping it would leave every
+        later data cloud unanswered), and so does the counter. Data clouds waiting for a
+        synchronized partner are dropped (counted) when switching to latest_model, which never
+        pairs a data cloud with a later model.
+        """
         if mode not in PAIRING_MODES:
             raise ValueError(f"pairing mode must be one of {', '.join(PAIRING_MODES)}, got {mode!r}")
         if not tolerance_sec >= 0:
             raise ValueError(f"tolerance_sec must be >= 0, got {tolerance_sec}")
-        if buffer_size < 1:
-            raise ValueError(f"buffer_size must be >= 1, got {buffer_size}")
         self.mode = mode
         self.tolerance_ns = round(tolerance_sec * 1e9)
-        self._models: deque[tuple[int, ModelT]] = deque(maxlen=1 if mode == "latest_model" else buffer_size)
-        self._data: deque[tuple[int, DataT]] = deque(maxlen=buffer_size)
-        self.unpaired_data = 0  # data clouds that found no model (dropped)
+        # A deque with maxlen keeps the newest items: latest_model keeps the newest model.
+        self._models = deque(self._models, maxlen=1 if mode == "latest_model" else self._buffer_size)
+        if mode == "latest_model":
+            self.unpaired_data += len(self._data)
+            self._data.clear()
 
     @property
     def latest_model(self) -> ModelT | None:

@@ -2,8 +2,14 @@
 
 ``RegistrationPipeline.process(model_msg, data_msg)`` converts both clouds, checks frames,
 registers (optionally warm-started from the previous estimate) and returns either
-:class:`Registered` or :class:`Rejected` (with the reason). It never raises for bad input.
+:class:`Registered` or :class:`Rejected` (with the reason). It never raises, whatever the input.
 No rclpy import: messages are duck-typed (see ``pointcloud2``).
+
+A registered pair carries the core's plausibility verdict (``Registered.reliable`` and
+``reason``): an implausible result is reported, never used as a warm start. Only a reliable
+result becomes the next pair's warm start; any rejection or unreliable result clears it, so one
+garbage cloud cannot steer the pairs after it. (The core itself retries a warm start cold when
+the warm-started result is implausible; the pipeline does not retry.)
 
 Frames: a configured ``model_frame``/``data_frame`` must match; in synchronized mode a stream's
 frame must stay what it was at the last registered pair (else the pair is rejected; ``reset()``
@@ -19,7 +25,7 @@ from typing import Any, Literal
 import numpy as np
 
 from frisicp_core import RegistrationResult, Similarity, register
-from frisicp_ros.stream.pointcloud2 import CloudError, cloud_to_points, stamp_ns
+from frisicp_ros.stream.pointcloud2 import CloudError, cloud_to_points
 from frisicp_ros.stream.settings import PipelineSettings, settings_from
 
 RejectedInput = Literal["model", "data", "pair"]
@@ -33,23 +39,49 @@ class Timings:
 
 @dataclass(frozen=True)
 class PairHeader:
-    """Where a pair's outputs go: the data cloud's stamp and frame, the model cloud's frame."""
+    """Where a pair's outputs go: the data cloud's stamp and frame, the model cloud's frame.
 
-    stamp_ns: int
+    ``stamp`` is the data cloud's (sec, nanosec) exactly as received: outputs copy it, so a stamp
+    that is not normalised (nanosec >= 1e9) is passed on as it came instead of overflowing or
+    wrapping the 32-bit ``sec`` of the outputs.
+    """
+
+    stamp: tuple[int, int]
     model_frame: str
     data_frame: str
     dims: int
 
+    @property
+    def stamp_ns(self) -> int:
+        sec, nanosec = self.stamp
+        return sec * 1_000_000_000 + nanosec
+
 
 @dataclass(frozen=True)
 class Registered(PairHeader):
-    """A registered pair. ``data_points``/``model_points``: how many points were registered."""
+    """A registered pair. ``data_points``/``model_points``: how many points were registered.
+
+    ``reliable`` False: the result failed the plausibility checks (``reason`` says which); it is
+    reported but must not be published or used as a pose.
+    """
 
     result: RegistrationResult
     data_points: int
     model_points: int
     timings: Timings
-    warm_started: bool
+
+    @property
+    def reliable(self) -> bool:
+        return self.result.reliable
+
+    @property
+    def reason(self) -> str:
+        return self.result.reason
+
+    @property
+    def warm_started(self) -> bool:
+        """True when the result came from the warm start (False after the core's cold retry)."""
+        return self.result.warm_started
 
 
 @dataclass(frozen=True)
@@ -103,41 +135,44 @@ class RegistrationPipeline:
         self.settings = settings
 
     def process(self, model_msg: Any, data_msg: Any) -> PairOutcome:
+        """The outcome of one pair; only a reliable result is kept as the next warm start."""
+        header = pair_header(model_msg, data_msg, self.settings.dims)
+        try:
+            outcome = self._process(header, model_msg, data_msg)
+        except Exception as err:  # noqa: BLE001 - a stream must outlive any one pair
+            # The conversions and the core reject bad input with reasons; anything else is a bug,
+            # still reported per pair (with its type) instead of ending the stream.
+            outcome = Rejected(**vars(header), reason=f"unexpected {describe(err)}", input="pair")
+        if isinstance(outcome, Registered) and outcome.reliable:
+            self._previous = outcome.result.similarity
+        else:
+            self._previous = None  # a rejection or an implausible result: next pair starts cold
+        return outcome
+
+    def _process(self, header: PairHeader, model_msg: Any, data_msg: Any) -> PairOutcome:
         settings = self.settings
-        header = PairHeader(
-            stamp_ns=stamp_ns(data_msg),
-            model_frame=str(model_msg.header.frame_id),
-            data_frame=str(data_msg.header.frame_id),
-            dims=settings.dims,
-        )
         frame_problem = self._check_frames(header.model_frame, header.data_frame)
         if frame_problem:
-            return _rejected(header, frame_problem, "pair")
+            return Rejected(**vars(header), reason=frame_problem, input="pair")
         started = time.perf_counter()
         try:
             model_points = self._model_points(model_msg)
         except CloudError as err:
-            return _rejected(header, f"model cloud: {err}", "model")
+            return Rejected(**vars(header), reason=f"model cloud: {err}", input="model")
         try:
             data_points = cloud_to_points(
                 data_msg, settings.dims, settings.max_points, settings.registration.seed
             )
         except CloudError as err:
-            return _rejected(header, f"data cloud: {err}", "data")
+            return Rejected(**vars(header), reason=f"data cloud: {err}", input="data")
         converted = time.perf_counter()
         initial = self._previous if settings.warm_start else None
         try:
             result = register(data_points, model_points, replace(settings.registration, initial=initial))
-        except Exception as err:  # noqa: BLE001 - a live node must outlive any one pair
-            # ValueError: degenerate geometry, too few points. Anything else is a core bug; it is
-            # still reported per pair (with its type) instead of killing the node's worker.
-            self._previous = None
-            reason = str(err) if isinstance(err, ValueError) else f"unexpected {type(err).__name__}: {err}"
+        except ValueError as err:  # degenerate geometry, too few points, coordinates that overflow
             timings = Timings(converted - started, time.perf_counter() - converted)
-            return _rejected(header, f"registration: {reason}", "pair", timings)
+            return Rejected(**vars(header), reason=f"registration: {err}", input="pair", timings=timings)
         timings = Timings(converted - started, time.perf_counter() - converted)
-        # A diverged estimate would poison the next start: only a converged one is kept.
-        self._previous = result.similarity if result.converged else None
         self._frames = {"model": header.model_frame, "data": header.data_frame}
         return Registered(
             **vars(header),
@@ -145,7 +180,6 @@ class RegistrationPipeline:
             data_points=len(data_points),
             model_points=len(model_points),
             timings=timings,
-            warm_started=initial is not None,
         )
 
     def _model_points(self, model_msg: Any) -> np.ndarray:
@@ -181,7 +215,16 @@ class RegistrationPipeline:
         return None
 
 
-def _rejected(
-    header: PairHeader, reason: str, side: RejectedInput, timings: Timings | None = None
-) -> Rejected:
-    return Rejected(**vars(header), reason=reason, input=side, timings=timings or Timings())
+def pair_header(model_msg: Any, data_msg: Any, dims: int) -> PairHeader:
+    stamp = data_msg.header.stamp
+    return PairHeader(
+        stamp=(int(stamp.sec), int(stamp.nanosec)),
+        model_frame=str(model_msg.header.frame_id),
+        data_frame=str(data_msg.header.frame_id),
+        dims=dims,
+    )
+
+
+def describe(err: BaseException) -> str:
+    text = str(err).strip()
+    return f"{type(err).__name__}: {text}" if text else type(err).__name__

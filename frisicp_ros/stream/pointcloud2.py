@@ -159,8 +159,10 @@ def cloud_to_points(msg: Any, dims: int = 3, max_points: int | None = None, seed
     if total == 0:
         raise CloudError("empty cloud: width * height = 0")
     points = np.empty((total, dims), dtype=np.float64)
-    for column, view in enumerate(views):
-        points[:, column] = view.reshape(-1)  # the one copy: field dtype -> native float64
+    # Garbage bytes (a wrong byte order flag) hold signalling NaNs: dropped below, not warned about.
+    with np.errstate(invalid="ignore"):
+        for column, view in enumerate(views):
+            points[:, column] = view.reshape(-1)  # the one copy: field dtype -> native float64
     finite = np.isfinite(points).all(axis=1)
     if not finite.all():
         points = points[finite]

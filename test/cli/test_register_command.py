@@ -130,3 +130,46 @@ def test_unknown_extension(tmp_path):
     (tmp_path / "cloud.obj").write_text("v 1 2 3\n")
     with pytest.raises(CloudFileError, match="unknown extension"):
         read_points(tmp_path / "cloud.obj")
+
+
+def test_numeric_options_are_bounded_like_the_node_parameters(capsys):
+    """`--levels 100000000` ran out of memory with a traceback; every number has a range."""
+    from frisicp_ros.cli import main as cli
+
+    for flag, value, name in (
+        ("--levels", "100000000", "levels"),
+        ("--max-iterations", "10000000000", "max_iterations"),
+        ("--coarsest-points", "10000000000", "coarsest_points"),
+        ("--overlap", "nan", "overlap"),
+        ("--max-distance", "inf", "max_distance"),
+    ):
+        code = cli.main(["register", "a.xyz", "b.xyz", flag, value])
+        err = capsys.readouterr().err
+        assert code == 2 and f"{name} must be in [" in err, err
+
+
+def test_an_implausible_result_is_said_and_exits_1(tmp_path, capsys, monkeypatch):
+    """Whatever ICP returns for a hopeless pair is not a pose: the verdict is printed with its
+    reason and the exit code is 1 (the verdict's thresholds are the core's; faked here)."""
+    import dataclasses
+
+    from frisicp_core import register
+    from frisicp_ros.cli import main as cli
+    from frisicp_ros.cli import register as register_command
+
+    def implausible(*args, **kwargs):
+        result = register(*args, **kwargs)
+        return dataclasses.replace(result, reliable=False, reason="scale 1.5e+40 is far from the size ratio")
+
+    monkeypatch.setattr(register_command, "register", implausible)
+    data = bumpy_surface(300, seed=1)
+    np.save(tmp_path / "data.npy", data)
+    np.save(tmp_path / "model.npy", data * 2.0)
+    for json_flag in ([], ["--json"]):
+        code = cli.main(["register", str(tmp_path / "data.npy"), str(tmp_path / "model.npy"), *json_flag])
+        out = capsys.readouterr().out
+        assert code == 1
+        if json_flag:
+            assert json.loads(out)["reliable"] is False and "1.5e+40" in json.loads(out)["reason"]
+        else:
+            assert "reliable     False  (scale 1.5e+40 is far from the size ratio)" in out

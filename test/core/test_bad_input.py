@@ -25,6 +25,38 @@ def test_unusable_data_is_named(data, message):
         register(data, GOOD)
 
 
+def with_outlier(points: np.ndarray, at: float) -> np.ndarray:
+    far = points.copy()
+    far[7] = [at, 0.0, 0.0]
+    return far
+
+
+@pytest.mark.parametrize(
+    ("data", "message", "not_said"),
+    [
+        # One far point used to be reported as "collinear"; the rest of the cloud is fine.
+        (with_outlier(GOOD, 1e30), r"one point is 1e\+30 away from the others.*an outlier", "collinear"),
+        # Used to end in numpy's "Eigenvalues did not converge".
+        (GOOD * 1e300, r"coordinates up to .*e\+300 overflow float64", "Eigenvalues"),
+        (GOOD * 1e200, r"coordinates up to .*e\+200 overflow float64", "Eigenvalues"),
+    ],
+    ids=["far-outlier", "coordinates-1e300", "coordinates-1e200"],
+)
+def test_extreme_values_are_named_for_what_they_are(data, message, not_said):
+    with pytest.raises(ValueError, match=message) as raised:
+        register(data, GOOD)
+    assert not_said not in str(raised.value)
+    with pytest.raises(ValueError, match=message):
+        register(GOOD, data)  # either side
+
+
+def test_a_degenerate_cloud_with_an_outlier_is_still_called_degenerate():
+    line = np.outer(np.linspace(0, 1, 50), [1.0, 2.0, 3.0])
+    line[3] = [1e30, 5.0, 0.0]
+    with pytest.raises(ValueError, match="collinear"):
+        register(line, GOOD)
+
+
 def test_collinear_points_in_2d_are_degenerate():
     line = np.column_stack([np.linspace(0, 1, 20), np.linspace(0, 2, 20)])
     with pytest.raises(ValueError, match="collinear"):

@@ -99,6 +99,97 @@ def test_colcon_build_installs_what_ros2_run_and_launch_need(tmp_path, options):
     assert run.returncode == 2 and "method must be one of" in run.stderr, run.stderr
 
 
+class _Recorded:
+    """A stand-in for a launch class: records how it was constructed."""
+
+    def __init__(self, *args, **kwargs):
+        self.args, self.kwargs = args, kwargs
+
+
+class _LaunchConfiguration(_Recorded):
+    def perform(self, context):
+        return context[self.args[0]]
+
+
+def _fake_launch_modules(monkeypatch):
+    """``launch`` and ``launch_ros`` are not on PyPI: modules with the few names the file uses."""
+    import types
+
+    modules = {
+        "launch": {"LaunchDescription": _Recorded},
+        "launch.actions": {"DeclareLaunchArgument": _Recorded, "OpaqueFunction": _Recorded},
+        "launch.substitutions": {"LaunchConfiguration": _LaunchConfiguration},
+        "launch_ros": {},
+        "launch_ros.actions": {"Node": _Recorded},
+    }
+    for name, members in modules.items():
+        module = types.ModuleType(name)
+        module.__dict__.update(members)
+        monkeypatch.setitem(sys.modules, name, module)
+
+
+def _launch(monkeypatch, **given: str):
+    """Run the launch file as ``ros2 launch`` would: declared defaults, then ``given``; returns
+    the declared arguments and the Node's constructor arguments."""
+    import runpy
+
+    _fake_launch_modules(monkeypatch)
+    monkeypatch.setattr(
+        "ament_index_python.packages.get_package_share_directory", lambda package: f"/share/{package}"
+    )
+    namespace = runpy.run_path(str(ROOT / "launch" / "register.launch.py"))
+    description = namespace["generate_launch_description"]()
+    actions = description.args[0]
+    declared = {a.args[0]: a.kwargs for a in actions if type(a).__name__ == "_Recorded" and a.args}
+    context = {name: spec["default_value"] for name, spec in declared.items()} | given
+    for name, value in given.items():
+        choices = declared[name].get("choices")
+        assert choices is None or value in choices, (name, value, choices)
+    (opaque,) = [a for a in actions if "function" in a.kwargs]
+    (node,) = opaque.kwargs["function"](context)
+
+    def resolved(value):
+        return value.perform(context) if isinstance(value, _LaunchConfiguration) else value
+
+    arguments = dict(node.kwargs)
+    arguments["name"], arguments["namespace"] = (
+        resolved(node.kwargs["name"]),
+        resolved(node.kwargs["namespace"]),
+    )
+    arguments["parameters"] = [resolved(p) for p in node.kwargs["parameters"]]
+    arguments["arguments"] = [resolved(a) for a in node.kwargs["arguments"]]
+    arguments["remappings"] = [(k, resolved(v)) for k, v in node.kwargs["remappings"]]
+    return declared, arguments
+
+
+def test_launch_arguments_set_namespace_name_log_level_and_qos(monkeypatch):
+    from frisicp_ros.stream.settings import DATA_QOS_CHOICES, MODEL_QOS_CHOICES
+
+    declared, node = _launch(monkeypatch)
+    assert node["package"] == "frisicp_ros" and node["executable"] == "register_node"
+    assert (node["name"], node["namespace"]) == ("frisicp", "")
+    assert node["parameters"] == ["/share/frisicp_ros/config/frisicp.yaml"]  # the file's QoS stays
+    assert node["arguments"] == ["--ros-args", "--log-level", "info"]
+    assert node["remappings"] == [("model", "model"), ("data", "data")]
+    assert declared["model_qos"]["choices"] == ["", *MODEL_QOS_CHOICES]  # the settings table's
+    assert declared["data_qos"]["choices"] == ["", *DATA_QOS_CHOICES]
+
+    _, node = _launch(
+        monkeypatch,
+        namespace="robot1",
+        node_name="align",
+        log_level="debug",
+        model_qos="transient_local",
+        params_file="/my.yaml",
+        model_topic="/map",
+        data_topic="/points",
+    )
+    assert (node["name"], node["namespace"]) == ("align", "robot1")
+    assert node["parameters"] == ["/my.yaml", {"model_qos": "transient_local"}]
+    assert node["arguments"] == ["--ros-args", "--log-level", "debug"]
+    assert node["remappings"] == [("model", "/map"), ("data", "/points")]
+
+
 def test_launch_file_starts_register_node_with_the_config_and_topic_arguments():
     source = (ROOT / "launch" / "register.launch.py").read_text()
     tree = ast.parse(source)  # compiles: a syntax error fails here

@@ -19,7 +19,8 @@ from support.ros import (
     wait_until,
 )
 
-ros_environment(131)  # before rclpy.init
+DOMAIN = 131
+ros_environment(DOMAIN)
 
 import rclpy  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
@@ -71,7 +72,7 @@ class Probe:
 @pytest.fixture(scope="module")
 def ros():
     context = rclpy.Context()
-    rclpy.init(context=context)
+    rclpy.init(context=context, domain_id=DOMAIN)
     node = RegistrationNode(
         context=context,
         parameter_overrides=[Parameter("max_points", value=3000), Parameter("diagnostics_period", value=0.3)],

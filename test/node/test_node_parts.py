@@ -73,3 +73,51 @@ def test_status_levels_counters_and_latency():
     assert status.report(4, 1, True).level == ERROR
     status.record(good, 0.1, 0.0)
     assert status.report(4, 1, True).level == OK
+
+
+def _implausible(outcome):
+    """``outcome`` with a result the verdict refuses (as a garbage cloud produces)."""
+    import dataclasses
+
+    from frisicp_core import Similarity
+
+    result = dataclasses.replace(
+        outcome.result,
+        similarity=Similarity(1.5e40, np.eye(3), np.zeros(3)),
+        reliable=False,
+        reason="scale 1.5e+40 is far from the clouds' size ratio",
+    )
+    return dataclasses.replace(outcome, result=result)
+
+
+def test_status_is_never_ok_for_an_implausible_result():
+    good, _ = _outcomes()
+    status = NodeStatus()
+    status.record(good, 0.1, 0.0)
+    assert status.report(0, 0, True).level == OK
+    status.record(_implausible(good), None, 0.0)
+    report = status.report(0, 0, True)
+    assert report.level == WARN and "implausible" in report.message and "1.5e+40" in report.message
+    assert report.values["unreliable results"] == "1" and report.values["registered pairs"] == "1"
+    assert report.values["last scale"] == f"{good.result.similarity.scale:.6g}"  # the last *published* one
+    status.record(_implausible(good), None, 0.0)
+    status.record(_implausible(good), None, 0.0)
+    assert status.report(0, 0, True).level == ERROR
+    status.record(good, 0.1, 0.0)
+    assert status.report(0, 0, True).level == OK
+
+
+def test_publish_errors_are_counted_and_a_stopped_worker_is_an_error():
+    good, _ = _outcomes()
+    status = NodeStatus()
+    status.record(good, 0.1, 0.0)
+    status.record_error("AssertionError: the 'sec' field must be an integer")
+    report = status.report(0, 0, True)
+    assert report.level == WARN and report.values["publish errors"] == "1"
+    assert "sec" in report.values["last publish error"]
+    status.record(good, 0.1, 0.0)
+    assert status.report(0, 0, True).level == OK
+    status.record_worker_stopped("RuntimeError: boom")
+    status.record(good, 0.1, 0.0)  # nothing said before the worker died makes it OK again
+    report = status.report(0, 0, True)
+    assert report.level == ERROR and "worker stopped" in report.message and "boom" in report.message

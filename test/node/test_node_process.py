@@ -10,19 +10,24 @@ from __future__ import annotations
 import signal
 import subprocess
 import sys
-import threading
 from pathlib import Path
 
 import numpy as np
 import pytest
-from support.ros import TRUTH, ros_environment, scene_messages, transform_similarity, wait_until
+from support.ros import (
+    TRUTH,
+    ros_environment,
+    scene_messages,
+    spinning_node,
+    transform_similarity,
+    wait_until,
+)
 
-ENV = ros_environment(132)
+DOMAIN = 132
+ENV = ros_environment(DOMAIN)
 
-import rclpy  # noqa: E402
 from geometry_msgs.msg import TransformStamped  # noqa: E402
 from rcl_interfaces.srv import SetParameters  # noqa: E402
-from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import PointCloud2  # noqa: E402
@@ -63,18 +68,8 @@ def node_process():
 
 @pytest.fixture
 def probe():
-    context = rclpy.Context()
-    rclpy.init(context=context)
-    node = rclpy.create_node("process_probe", context=context)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
-    yield node
-    executor.shutdown(timeout_sec=5)
-    node.destroy_node()
-    rclpy.shutdown(context=context)
-    spinner.join(5)
+    with spinning_node("process_probe", DOMAIN) as node:
+        yield node
 
 
 def test_console_script_registers_validates_parameters_and_exits_cleanly_on_sigint(node_process, probe):

@@ -65,6 +65,23 @@ def test_synchronized_pairs_by_stamp_within_tolerance_in_either_arrival_order():
         Pairer("newest")
 
 
+def test_changing_mode_or_tolerance_keeps_the_stored_model_and_the_counter():
+    """A latched map arrives once: a parameter change must not forget it."""
+    pairer: Pairer[str, str] = Pairer("latest_model")
+    pairer.add_data(1, "early")
+    pairer.add_model(2, "map")
+    pairer.reconfigure("latest_model", 0.2)
+    assert pairer.add_data(3, "d1") == [("map", "d1")] and pairer.unpaired_data == 1
+    pairer.reconfigure("synchronized", 10.0)
+    assert pairer.add_data(4, "d2") == [("map", "d2")]
+    pairer.add_data(50 * 10**9, "waiting")  # no model within the tolerance: buffered
+    pairer.add_model(100 * 10**9, "map2")
+    pairer.reconfigure("latest_model", 0.05)  # the waiting data cloud can never pair now
+    assert pairer.unpaired_data == 2 and pairer.latest_model == "map2"
+    with pytest.raises(ValueError, match="pairing mode"):
+        pairer.reconfigure("newest", 0.1)
+
+
 # --- pipeline ------------------------------------------------------------------------------------
 
 

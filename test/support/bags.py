@@ -115,6 +115,20 @@ def cloud_bytes(points: np.ndarray) -> bytes:
     return packed.tobytes()
 
 
+def assert_matches_truth(record: dict, truth: Similarity) -> None:
+    """A bag-mode JSON line is a usable pose (ok, converged, reliable) equal to ``truth``."""
+    import pytest
+
+    from frisicp_core import rotation_angle
+
+    estimate = Similarity.from_quaternion(record["scale"], record["quaternion_xyzw"], record["translation"])
+    assert record["ok"] and record["converged"] and record["reliable"] and record["reason"] == ""
+    assert estimate.scale == pytest.approx(truth.scale, rel=5e-3)
+    assert np.degrees(rotation_angle(estimate.rotation.T @ truth.rotation)) < 0.5
+    np.testing.assert_allclose(estimate.translation, truth.translation, atol=0.01 * truth.scale + 0.005)
+    np.testing.assert_allclose(np.array(record["rotation"]), estimate.rotation, atol=1e-6)
+
+
 # --- rosbags writers -------------------------------------------------------------------------
 
 

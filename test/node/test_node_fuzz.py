@@ -1,0 +1,307 @@
+"""Fuzz: a live node fed >= 2,000 hostile PointCloud2 messages of every known class (as data and
+as model), interleaved with valid pairs. Seeded and bounded (20-80 s on 2 cores, by load).
+
+Asserts: the node stays alive (worker, executor); every valid pair is answered correctly
+(rotation < 1 degree, scale < 1 %); no cloud of nonsense numbers (wrong byte order, random
+bytes, a 1e30 outlier, 1e300 coordinates) is ever published as a pose; every pair is counted
+exactly once (registered, unreliable, rejected or publish error; none dropped); resident memory
+grows < 20 MiB after warm-up.
+
+Messages go over real DDS (loopback, domain 136) in lock-step: each is sent once the node has
+finished with the one before, so no pair is dropped by the newest-wins slot and the counters
+can be checked exactly. The figures are printed (``pytest -s``) and quoted in docs/node.md.
+"""
+
+from __future__ import annotations
+
+import copy
+import os
+import time
+from collections import Counter
+from collections.abc import Callable
+
+import numpy as np
+import pytest
+from support.ros import NodeAndProbe, cloud_message, ros_environment, transform_similarity
+
+DOMAIN = 136
+ros_environment(DOMAIN)
+
+from geometry_msgs.msg import TransformStamped  # noqa: E402
+from rclpy.parameter import Parameter  # noqa: E402
+from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
+from sensor_msgs.msg import PointCloud2, PointField  # noqa: E402
+from std_msgs.msg import Float64  # noqa: E402
+
+from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface, rotation_angle  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+SEED = 2026
+HOSTILE_MESSAGES = 2100
+VALID_EVERY = 8  # a valid pair after every 8 hostile messages
+POINTS = 300
+STEP_TIMEOUT = 10.0
+RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
+FLOAT64 = PointField.FLOAT64
+SHAPE = bumpy_surface(POINTS, seed=5)
+
+
+def valid_truth(k: int) -> Similarity:
+    """A slowly moving pose (tracking), so a warm start from the last valid pair is sound."""
+    angle = np.deg2rad(20.0 + 3.0 * np.sin(k / 7.0))
+    return Similarity(
+        1.5 + 0.05 * np.sin(k / 11.0), axis_angle_rotation([0.3, 1.0, 0.2], angle), [0.5, -1.0, 2.0]
+    )
+
+
+# --- hostile messages: each takes (rng, stamp_ns) and returns a PointCloud2 ---------------------
+
+
+def _cloud(points: np.ndarray, stamp_ns: int, frame: str = "lidar") -> PointCloud2:
+    return cloud_message(points, frame, stamp_ns)
+
+
+def _float64_cloud(points: np.ndarray, stamp_ns: int) -> PointCloud2:
+    """x y z as FLOAT64 (float32 would turn 1e300 into inf, which is merely dropped)."""
+    msg = _cloud(np.zeros((len(points), 3)), stamp_ns)
+    msg.fields = [PointField(name=n, offset=8 * i, datatype=FLOAT64, count=1) for i, n in enumerate("xyz")]
+    msg.point_step, msg.row_step = 24, 24 * len(points)
+    msg.data = np.ascontiguousarray(points, dtype="<f8").tobytes()
+    return msg
+
+
+def _valid_data(rng: np.random.Generator, stamp_ns: int) -> PointCloud2:
+    return _cloud(SHAPE[rng.permutation(POINTS)[: POINTS * 4 // 5]], stamp_ns)
+
+
+def _mutated(change: Callable[[PointCloud2, np.random.Generator], None]):
+    def make(rng: np.random.Generator, stamp_ns: int) -> PointCloud2:
+        msg = _valid_data(rng, stamp_ns)
+        change(msg, rng)
+        return msg
+
+    return make
+
+
+def _set(**fields):
+    def change(msg: PointCloud2, rng: np.random.Generator) -> None:
+        for name, value in fields.items():
+            setattr(msg, name, value(msg, rng) if callable(value) else value)
+
+    return change
+
+
+def _fields(*specs: tuple[str, int, int]):
+    return _set(
+        fields=lambda msg, rng: [PointField(name=n, offset=o, datatype=d, count=1) for n, o, d in specs]
+    )
+
+
+def _random_bytes(msg: PointCloud2, rng: np.random.Generator) -> None:
+    msg.data = rng.bytes(len(msg.data))  # a decodable cloud of garbage numbers
+
+
+def _outlier(rng: np.random.Generator, stamp_ns: int) -> PointCloud2:
+    points = SHAPE.copy()
+    points[rng.integers(POINTS)] = [rng.choice([-1, 1]) * 10.0 ** rng.uniform(20, 35), 0.0, 0.0]
+    return _float64_cloud(points, stamp_ns)
+
+
+HOSTILE: dict[str, Callable[[np.random.Generator, int], PointCloud2]] = {
+    "lying byte order": _mutated(_set(is_bigendian=True)),
+    "random bytes": _mutated(_random_bytes),
+    "data too short": _mutated(_set(data=lambda msg, rng: msg.data[: int(rng.integers(len(msg.data)))])),
+    "point_step 0": _mutated(_set(point_step=0)),
+    "row_step too small": _mutated(_set(row_step=lambda msg, rng: msg.row_step // 2)),
+    "huge width claimed": _mutated(_set(width=2**31 - 1)),
+    "height 0": _mutated(_set(height=0, row_step=0, data=b"")),
+    "overlapping fields": _mutated(_fields(("x", 0, 7), ("y", 2, 7), ("z", 8, 7))),
+    "duplicate field": _mutated(_fields(("x", 0, 7), ("x", 4, 7), ("z", 8, 7))),
+    "unknown datatype": _mutated(_fields(("x", 0, 42), ("y", 4, 7), ("z", 8, 7))),
+    "missing z": _mutated(_fields(("x", 0, 7), ("y", 4, 7))),
+    "field past point_step": _mutated(_fields(("x", 0, 7), ("y", 4, 7), ("z", 14, 7))),
+    "int8 coordinates": _mutated(_fields(("x", 0, 1), ("y", 1, 1), ("z", 2, 1))),
+    "empty": lambda rng, stamp: _cloud(np.zeros((0, 3)), stamp),
+    "all NaN": lambda rng, stamp: _cloud(np.full((50, 3), np.nan), stamp),
+    "some NaN and Inf": lambda rng, stamp: _cloud(
+        np.where(rng.random((POINTS, 1)) < 0.2, np.inf, SHAPE)
+        * np.where(rng.random((POINTS, 1)) < 0.1, np.nan, 1),
+        stamp,
+    ),
+    "identical points": lambda rng, stamp: _cloud(np.ones((100, 3)) * rng.normal(size=3), stamp),
+    "collinear": lambda rng, stamp: _cloud(np.outer(rng.random(100), rng.normal(size=3)), stamp),
+    "too few points": lambda rng, stamp: _cloud(rng.normal(size=(int(rng.integers(1, 4)), 3)), stamp),
+    "one far outlier": _outlier,
+    "coordinates 1e300": lambda rng, stamp: _float64_cloud(SHAPE * 10.0 ** rng.uniform(160, 300), stamp),
+    "coordinates 1e-300": lambda rng, stamp: _float64_cloud(SHAPE * 1e-300, stamp),
+    "another shape": lambda rng, stamp: _cloud(rng.normal(size=(POINTS, 3)) * [3, 1, 0.2], stamp),
+    "odd frame id": _mutated(lambda msg, rng: setattr(msg.header, "frame_id", "ä/" * 200)),
+}
+
+
+def _odd_stamp(msg: PointCloud2, rng: np.random.Generator) -> None:
+    msg.header.stamp.sec = int(rng.choice([2**31 - 1, -(2**31), 0, -1]))
+    msg.header.stamp.nanosec = int(rng.choice([2**32 - 1, 999_999_999, 0]))
+
+
+HOSTILE["stamp out of range"] = _mutated(_odd_stamp)
+# Nonsense numbers, whatever they register to: never published, as data or as model.
+GARBAGE = {"lying byte order", "random bytes", "one far outlier", "coordinates 1e300"}
+# Every class also arrives as a *model*: the next data cloud is then paired with it.
+AS_MODEL_SHARE = 0.25
+
+
+class Fuzzer(NodeAndProbe):
+    def __init__(self) -> None:
+        parameters = [
+            Parameter("model_qos", value="reliable"),
+            Parameter("data_qos", value="reliable"),
+            Parameter("max_points", value=0),
+            Parameter("diagnostics_period", value=60.0),
+        ]
+        super().__init__(DOMAIN, parameters, "fuzz_probe")
+        self.model_pub = self.probe.create_publisher(PointCloud2, "model", RELIABLE)
+        self.data_pub = self.probe.create_publisher(PointCloud2, "data", RELIABLE)
+        # Both in publication order: the n-th scale belongs to the n-th transform.
+        self.transforms: dict[tuple[int, int], tuple[int, TransformStamped]] = {}
+        self.scales: list[float] = []
+        self.received = 0
+        self.probe.create_subscription(TransformStamped, "/frisicp/transform", self._on_transform, RELIABLE)
+        self.probe.create_subscription(
+            Float64, "/frisicp/scale", lambda m: self.scales.append(m.data), RELIABLE
+        )
+        self.start()
+        deadline = time.monotonic() + 10
+        while time.monotonic() < deadline and not (
+            self.model_pub.get_subscription_count() and self.data_pub.get_subscription_count()
+        ):
+            time.sleep(0.05)
+
+    def _on_transform(self, msg: TransformStamped) -> None:
+        self.transforms[(msg.header.stamp.sec, msg.header.stamp.nanosec)] = (self.received, msg)
+        self.received += 1  # not len(transforms): hostile stamps repeat
+
+    def answer(self, data: PointCloud2) -> Similarity | None:
+        """The published similarity for ``data`` (transform and its scale), or None."""
+        key = (data.header.stamp.sec, data.header.stamp.nanosec)
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline:
+            if key in self.transforms and len(self.scales) > self.transforms[key][0]:
+                index, transform = self.transforms[key]
+                return transform_similarity(transform, self.scales[index])
+            time.sleep(0.001)
+        return None
+
+    def processed(self) -> int:
+        """Pairs the node has finished with, each counted exactly once somewhere."""
+        status = self.node._status
+        with status._lock:
+            return (
+                status._registered
+                + status._unreliable
+                + sum(status._rejected.values())
+                + status._publish_errors
+            )
+
+    def send_model(self, msg: PointCloud2) -> None:
+        before = self.node._models_received
+        self.model_pub.publish(msg)
+        self._wait(lambda: self.node._models_received > before, "model")
+
+    def send_data(self, msg: PointCloud2) -> None:
+        before = self.processed()
+        self.data_pub.publish(msg)
+        self._wait(lambda: self.processed() > before, "data")
+
+    def _wait(self, done: Callable[[], bool], what: str) -> None:
+        deadline = time.monotonic() + STEP_TIMEOUT
+        while not done():
+            assert time.monotonic() < deadline, (
+                f"the node did not take a {what} message within {STEP_TIMEOUT} s"
+            )
+            assert self.node._worker.is_alive(), "the registration worker died"
+            time.sleep(0.0005)
+
+
+def rss_mib() -> float:
+    with open(f"/proc/{os.getpid()}/status") as status:
+        kib = next(int(line.split()[1]) for line in status if line.startswith("VmRSS:"))
+    return kib / 1024.0
+
+
+def test_hostile_messages_never_kill_hang_or_poison_the_node():
+    rng = np.random.default_rng(SEED)
+    fuzzer = Fuzzer()
+    sent: Counter[str] = Counter()
+    wrong: list[str] = []
+    valid_pairs = 0
+    data_messages = 0
+    garbage_stamps: set[tuple[int, int]] = set()
+    stamp = 1_800_000_000_000_000_000
+    classes = sorted(HOSTILE)
+    rss_start = None
+    started = time.monotonic()
+    try:
+        while sum(sent.values()) < HOSTILE_MESSAGES:
+            # a valid pair: its own model, then its data; the answer must be right
+            truth = valid_truth(valid_pairs)
+            stamp += 10_000_000
+            fuzzer.send_model(_cloud(truth.apply(SHAPE), stamp, "map"))
+            stamp += 10_000_000
+            data = _valid_data(rng, stamp)
+            fuzzer.send_data(data)
+            data_messages += 1
+            estimate = fuzzer.answer(data)
+            valid_pairs += 1
+            if estimate is None:
+                wrong.append(f"valid pair {valid_pairs}: no answer ({fuzzer.node._status._last_failure})")
+            else:
+                degrees = np.degrees(rotation_angle(estimate.rotation.T @ truth.rotation))
+                scale_error = abs(estimate.scale / truth.scale - 1)
+                if degrees >= 1.0 or scale_error >= 0.01:
+                    wrong.append(f"valid pair {valid_pairs}: {degrees:.2f} deg, scale off {scale_error:.2%}")
+            # hostile messages, every class in turn, with random details
+            for _ in range(VALID_EVERY):
+                name = classes[sum(sent.values()) % len(classes)]
+                stamp += 10_000_000
+                message = HOSTILE[name](rng, stamp)
+                if rng.random() < AS_MODEL_SHARE:
+                    fuzzer.send_model(message)
+                    stamp += 10_000_000
+                    message = _valid_data(rng, stamp)  # paired with the hostile model
+                fuzzer.send_data(copy.copy(message))
+                if name in GARBAGE:
+                    garbage_stamps.add((message.header.stamp.sec, message.header.stamp.nanosec))
+                data_messages += 1
+                sent[name] += 1
+            if rss_start is None and sum(sent.values()) >= HOSTILE_MESSAGES // 10:
+                rss_start = rss_mib()  # after warm-up: DDS buffers, imports, caches
+        seconds = time.monotonic() - started
+        status = fuzzer.node._status
+        report = fuzzer.node._status.report(
+            fuzzer.node._slot.dropped, fuzzer.node._pairer.unpaired_data, True
+        )
+        rss_growth = rss_mib() - (rss_start or 0.0)
+        print(
+            f"\nfuzz: {sum(sent.values())} hostile messages ({len(sent)} classes) and {valid_pairs} valid pairs"
+            f" in {seconds:.1f} s; node crashes 0, worker alive {fuzzer.node._worker.is_alive()};"
+            f" wrong answers to valid pairs {len(wrong)}, garbage published"
+            f" {len(garbage_stamps & set(fuzzer.transforms))} of {len(garbage_stamps)}; registered {report.values['registered pairs']},"
+            f" unreliable {report.values['unreliable results']}, rejected model/data/pair"
+            f" {report.values['rejected model clouds']}/{report.values['rejected data clouds']}/"
+            f"{report.values['rejected pairs']}, publish errors {report.values['publish errors']};"
+            f" RSS growth {rss_growth:.1f} MiB"
+        )
+        assert not wrong, wrong[:10]
+        time.sleep(0.5)  # outputs still in flight
+        published_garbage = garbage_stamps & set(fuzzer.transforms)
+        assert not published_garbage, f"{len(published_garbage)} garbage clouds were published as poses"
+        assert fuzzer.node._worker.is_alive() and fuzzer.spinner.is_alive()
+        assert status._worker_stopped is None
+        assert set(sent) == set(HOSTILE) and sum(sent.values()) >= 2000
+        assert fuzzer.processed() == data_messages, "a pair was lost or counted twice"
+        assert fuzzer.node._slot.dropped == 0 and report.values["publish errors"] == "0"
+        assert rss_growth < 20.0, f"resident memory grew {rss_growth:.1f} MiB"
+    finally:
+        fuzzer.close()
