@@ -28,7 +28,7 @@ from .similarity import FloatArray, Similarity
 # Scales of the in-place hypotheses, in octaves around the RMS-radius ratio: a part of a surface
 # has an RMS radius between about a quarter and all of the whole's, so the ratio misses the true
 # scale by up to a factor of a few in either direction (scan onto map, map onto scan).
-IN_PLACE_OCTAVES = (-1.0, -0.5, 0.0, 0.5, 1.0)
+IN_PLACE_OCTAVES = tuple(k / 2 for k in range(-6, 7))
 
 
 def principal_axes(points: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -49,33 +49,39 @@ def initial_hypotheses(
     model: FloatArray,
     config: RegistrationConfig,
     scale_bounds: tuple[float, float] | None,
-) -> list[Similarity]:
-    """The starting poses for ``config`` (one for a warm start or a single-pose initialization)."""
+) -> list[list[Similarity]]:
+    """The starting poses for ``config``, in families: poses of one family differ in one
+    parameter (the sign pattern of the principal axes, the scale), so the screening compares
+    them with each other first. One pose for a warm start or a single-pose initialization."""
     dim = data.shape[1]
     if config.initial is not None:
         if config.initial.dim != dim:
             raise ValueError(f"initial similarity is {config.initial.dim}-D but the points are {dim}-D")
-        guesses = [config.initial]
+        families = [[config.initial]]
     elif config.initialization is Initialization.IDENTITY:
-        guesses = [Similarity.identity(dim)]
+        families = [[Similarity.identity(dim)]]
     else:
         ratio = radius_ratio(data, model)
-        rotations = [np.eye(dim)]
-        if config.initialization in (Initialization.PRINCIPAL_AXES, Initialization.SEARCH):
-            rotations += _principal_axes_rotations(data, model)
         mu_d, mu_m = centroid(data), centroid(model)
         scale = 1.0 if config.method is Method.ICP else ratio
-        guesses = [Similarity(scale, rot, mu_m - scale * rot @ mu_d) for rot in rotations]
-        if config.initialization is Initialization.SEARCH:
-            scales = [1.0] if config.method is Method.ICP else [ratio * 2.0**k for k in IN_PLACE_OCTAVES]
-            guesses += [Similarity(s, np.eye(dim), mu_d - s * mu_d) for s in scales]
+
+        def centred(rotation: FloatArray) -> Similarity:
+            return Similarity(scale, rotation, mu_m - scale * rotation @ mu_d)
+
+        families = [[centred(np.eye(dim))]]
+        if config.initialization in (Initialization.PRINCIPAL_AXES, Initialization.SEARCH):
+            families.append([centred(rotation) for rotation in _principal_axes_rotations(data, model)])
+        if config.initialization is Initialization.SEARCH and config.method is not Method.ICP:
+            scales = [ratio * 2.0**k for k in IN_PLACE_OCTAVES]
+            families.append([Similarity(s, np.eye(dim), mu_d - s * mu_d) for s in scales])
     if scale_bounds is not None:
         # Du's method must start inside its bounds: from outside, the first clipped step can raise
         # the error, which the loop would take for convergence after one iteration.
-        guesses = [
-            Similarity(float(np.clip(g.scale, *scale_bounds)), g.rotation, g.translation) for g in guesses
+        families = [
+            [Similarity(float(np.clip(g.scale, *scale_bounds)), g.rotation, g.translation) for g in family]
+            for family in families
         ]
-    return guesses
+    return families
 
 
 def _principal_axes_rotations(data: FloatArray, model: FloatArray) -> list[FloatArray]:

@@ -67,6 +67,13 @@ class Selection:
     sum_sq: FloatArray
     merit: FloatArray
 
+    def assign(self, rows: np.ndarray, other: Selection) -> Selection:
+        """A copy with the selections of poses ``rows`` (indices) replaced by ``other``'s."""
+        fields = [a.copy() for a in (self.keep, self.kept, self.sum_sq, self.merit)]
+        for mine, theirs in zip(fields, (other.keep, other.kept, other.sum_sq, other.merit), strict=True):
+            mine[rows] = theirs
+        return Selection(*fields)
+
     @property
     def fraction(self) -> FloatArray:
         """Share of the direction's pairs kept: its estimated overlap."""

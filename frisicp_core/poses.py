@@ -41,6 +41,12 @@ class PoseBatch:
         """The poses selected by an index array or a boolean mask."""
         return PoseBatch(self.scale[keep], self.rotation[keep], self.translation[keep])
 
+    def assign(self, rows: np.ndarray, other: PoseBatch) -> PoseBatch:
+        """A copy with poses ``rows`` (indices) replaced by ``other``'s, in order."""
+        scale, rotation, translation = self.scale.copy(), self.rotation.copy(), self.translation.copy()
+        scale[rows], rotation[rows], translation[rows] = other.scale, other.rotation, other.translation
+        return PoseBatch(scale, rotation, translation)
+
     def where(self, use_other: np.ndarray, other: PoseBatch) -> PoseBatch:
         """Pose k from ``other`` where ``use_other[k]``, else from self."""
         return PoseBatch(
