@@ -61,6 +61,10 @@ _SCREENING_PASSES = 60
 _SCREEN_PRUNE_FROM = 2
 _KEEP_PER_FAMILY = 3
 _SCREEN_PRUNE_RATIO = 2.0
+# Distinct minima whose screening merits are within this margin of the best are compared again on
+# dense targets (at most this many): the thinned level can rank nearby basins wrongly.
+_FINALIST_MARGIN = 0.25
+_FINALISTS = 3
 # A level's first step is significant when it moves the data by more than this many standard
 # errors of the estimate (see ConvergenceCriteria.noise_floor): the usual three-sigma rule.
 _SIGNIFICANT = 3.0
@@ -191,6 +195,22 @@ class _Pyramid:
         return self._built[index]
 
 
+def _final_on_dense_targets(
+    solver: _Solver, level: _Level, finalists: list[Similarity], relative_motion: float
+) -> tuple[Similarity, LevelReport, _Pass]:
+    """Run every finalist of the screening on the first refinement level and keep the one that
+    ends with the lowest merit: with exact nearest neighbours the merits rank basins reliably."""
+    outcomes = []
+    for pose in finalists:
+        history_before = len(solver.history)
+        outcome = solver.run_level(0, level, pose, relative_motion=relative_motion)
+        outcomes.append((float(outcome[2].merit[0]), outcome, solver.history[history_before:]))
+        del solver.history[history_before:]
+    _, best, history = min(outcomes, key=lambda item: item[0])
+    solver.history.extend(history)
+    return best
+
+
 def _level_motion(config: RegistrationConfig, index: int, last: int) -> float:
     """Convergence tolerance of level ``index`` of ``last + 1``, relative to the model's radius.
 
@@ -203,6 +223,21 @@ def _level_motion(config: RegistrationConfig, index: int, last: int) -> float:
         return criteria.relative_motion
     fraction = index / last
     return float(criteria.coarse_relative_motion ** (1.0 - fraction) * criteria.relative_motion**fraction)
+
+
+def _finalists(minima: list[tuple[float, Similarity]], level: _Level, tolerance: float) -> list[Similarity]:
+    """The distinct poses among ``minima`` within :data:`_FINALIST_MARGIN` of the best merit,
+    best first, at most :data:`_FINALISTS` (poses within three tolerances are one minimum)."""
+    chosen: list[tuple[float, Similarity]] = []
+    for value, pose in sorted(minima, key=lambda item: item[0]):
+        if chosen and value > (1.0 + _FINALIST_MARGIN) * chosen[0][0]:
+            break
+        distances = [level.motion(PoseBatch.of([pose]), PoseBatch.of([other]))[0] for _, other in chosen]
+        if all(d > _SIGNIFICANT * tolerance for d in distances):
+            chosen.append((value, pose))
+        if len(chosen) == _FINALISTS:
+            break
+    return [pose for _, pose in chosen]
 
 
 def _best_of_each(family: np.ndarray, merit: FloatArray, keep: int) -> np.ndarray:
@@ -312,14 +347,17 @@ class _Solver:
             origin=(level.data_mean, level.model_mean),
         )
 
-    def screen(self, level: _Level, families: list[list[Similarity]]) -> Similarity:
-        """Iterate the hypotheses together with plain steps until each has settled into its
-        local minimum; the one with the lowest merit.
+    def screen(self, level: _Level, families: list[list[Similarity]]) -> list[Similarity]:
+        """Iterate the hypotheses together with plain (or accelerated) steps until each has
+        settled into its local minimum; the distinct minima worth a closer look, best first.
 
         Partial overlap converges slowly and not geometrically, and a wrong basin often looks
         best early on (on smooth synthetic caps the right hypotheses overtake after 10-30
         passes), so hypotheses are compared once settled, not after a fixed number of passes.
-        To keep the batch small:
+        On the thinned screening level the merits of different basins can be within a few
+        percent and in the wrong order, so every distinct minimum within
+        :data:`_FINALIST_MARGIN` of the best is returned (at most :data:`_FINALISTS`), for the
+        caller to compare on dense targets. To keep the batch small:
 
         - after :data:`_SCREEN_PRUNE_FROM` passes only the :data:`_KEEP_PER_FAMILY` best of each
           family stay (members differ in one parameter, e.g. the scale of the data in place;
@@ -327,16 +365,17 @@ class _Solver:
         - from then on, one whose merit is :data:`_SCREEN_PRUNE_RATIO` times the best's leaves
           (on 248 recorded screenings of the bunny cases the eventual winner was within 4 % of
           the best from the second pass on; on synthetic caps within 25 %);
-        - one that has come to the same pose as a better one leaves (the same basin);
+        - one within three standard errors of the pose of a better one, moving or settled,
+          leaves (the same basin);
         - one that settles (its step moves the data by less than ``coarse_relative_motion``)
-          leaves, the best settled one being remembered.
+          leaves the batch and joins the settled minima.
         """
         hypotheses = [sim for family in families for sim in family]
         family = np.concatenate([np.full(len(f), k) for k, f in enumerate(families)])
         poses = PoseBatch.of(hypotheses)
         pairs = self.correspond(level, poses)
         tolerance = self.config.criteria.coarse_relative_motion * self.model_radius
-        champion = (np.inf, poses[0])  # (merit, pose) of the best hypothesis that has settled
+        minima: list[tuple[float, Similarity]] = []  # settled hypotheses: (merit, pose)
         accelerators = (
             [AndersonAccelerator(sim, level.data_mean, self.model_radius) for sim in hypotheses]
             if self.config.acceleration
@@ -346,24 +385,20 @@ class _Solver:
             merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
             stepped, valid = self.step(level, pairs)
             stepped = poses.where(valid, stepped)
-            noise = np.maximum(tolerance, self.standard_errors(pairs))
-            settled = (level.motion(poses, stepped) <= noise) | ~valid
-            for k in np.flatnonzero(settled):
-                if merit[k] < champion[0]:
-                    champion = (float(merit[k]), poses[int(k)])
-            best = min(float(merit.min()), champion[0])
-            alive = (
-                ~settled & (merit < np.inf) & ~_repeats_better(stepped, merit, level, _SIGNIFICANT * noise)
-            )
-            if champion[0] < np.inf:  # come to the best settled pose: the same basin, no better
-                near = level.motion(PoseBatch.of([champion[1]] * len(stepped)), stepped)
-                alive &= (near > _SIGNIFICANT * noise) | (merit < champion[0])
+            settled = (level.motion(poses, stepped) <= tolerance) | ~valid
+            noise = _SIGNIFICANT * np.maximum(tolerance, self.standard_errors(pairs))
+            minima += [(float(merit[k]), poses[int(k)]) for k in np.flatnonzero(settled & (merit < np.inf))]
+            alive = ~settled & (merit < np.inf) & ~_repeats_better(stepped, merit, level, noise)
+            for value, pose in minima:  # on its way to a settled minimum: the same basin, no better
+                near = level.motion(PoseBatch.of([pose] * len(stepped)), stepped)
+                alive &= (near > noise) | (merit < value)
+            best = min([float(merit.min())] + [value for value, _ in minima])
             if iteration == _SCREEN_PRUNE_FROM:
                 alive &= _best_of_each(family, merit, _KEEP_PER_FAMILY)
             if iteration >= _SCREEN_PRUNE_FROM:
                 alive &= merit <= _SCREEN_PRUNE_RATIO * best
             if not alive.any():
-                return champion[1]
+                return _finalists(minima, level, tolerance)
             kept = np.flatnonzero(alive)
             family = family[alive]
             accelerators = [accelerators[k] for k in kept] if accelerators else []
@@ -371,8 +406,8 @@ class _Solver:
                 level, poses.take(kept), stepped.take(kept), merit[kept], accelerators, iteration
             )
         merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
-        winner = int(np.argmin(merit))
-        return poses[winner] if merit[winner] < champion[0] else champion[1]
+        minima += [(float(merit[k]), poses[k]) for k in range(len(poses)) if merit[k] < np.inf]
+        return _finalists(minima, level, tolerance)
 
     def _screening_step(
         self,
@@ -538,12 +573,19 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
 
     levels = _Pyramid(pyramid, data_set, model_set, bidirectional, config)
     families = initial_hypotheses(data_set, model_set, config, scale_bounds)
+    finalists = [families[0][0]]
     if sum(len(family) for family in families) > 1:
-        sim = solver.screen(levels.screening_level(), families)
-    else:
-        sim = families[0][0]
+        finalists = solver.screen(levels.screening_level(), families)
     reports = []
-    for index in range(last + 1):
+    first = 0
+    if len(finalists) > 1:
+        sim, report, pairs = _final_on_dense_targets(
+            solver, levels[0], finalists, _level_motion(config, 0, last)
+        )
+        reports, first = [report], 1
+    else:
+        sim = finalists[0]
+    for index in range(first, last + 1):
         sim, report, pairs = solver.run_level(
             index, levels[index], sim, relative_motion=_level_motion(config, index, last)
         )
