@@ -79,6 +79,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from datetime import date
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import scipy
@@ -91,6 +92,7 @@ from frisicp_bench.metrics import (
     MAX_ROTATION_DEG,
     MAX_SCALE_ERROR,
     MAX_TRANSLATION_ERROR,
+    PoseErrors,
     model_size,
     pose_errors,
 )
@@ -283,36 +285,36 @@ class Task:
 
 def run_task(task: Task) -> Record:
     case = make_case(task.data_dir, task.pair, task.scale, task.seed)
-    identity = {"group": task.group, "pair": task.pair.name, "scale": task.scale, "method": task.method}
+    estimate: Similarity | None
+    failure: str | None = None
+    verdict: dict[str, Any] = {}  # FRISICP's overlap estimates and plausibility verdict
     if task.method == FRISICP:
         result = register(case.data, case.model, RegistrationConfig())
-        errors = pose_errors(result.similarity, case.truth, case.data, case.size)
-        return Record(
-            **identity,
-            rotation_deg=errors.rotation_deg,
-            scale_error=errors.scale,
-            translation_error=errors.translation,
-            success=errors.success,
-            seconds=result.seconds,
-            overlap_forward=result.overlap_forward,
-            overlap_backward=result.overlap_backward,
-            reliable=result.reliable,
-            reason=result.reason,
-        )
-    with np.errstate(invalid="ignore"):  # a collapsed scale: NaN in the matrix, reported as no result
-        outcome = open3d_scaled_icp(case.data, case.model)
-    if outcome.similarity is None:
-        nan = math.nan
-        return Record(**identity, rotation_deg=nan, scale_error=nan, translation_error=nan, success=False,
-                      seconds=outcome.seconds, failure=outcome.failure)  # fmt: skip
-    errors = pose_errors(outcome.similarity, case.truth, case.data, case.size)
+        estimate, seconds = result.similarity, result.seconds
+        verdict = {
+            "overlap_forward": result.overlap_forward,
+            "overlap_backward": result.overlap_backward,
+            "reliable": result.reliable,
+            "reason": result.reason,
+        }
+    else:
+        with np.errstate(invalid="ignore"):  # a collapsed scale: NaN in the matrix, reported as no result
+            outcome = open3d_scaled_icp(case.data, case.model)
+        estimate, seconds, failure = outcome.similarity, outcome.seconds, outcome.failure
+    no_result = PoseErrors(math.nan, math.nan, math.nan)  # fails the test: NaN is below no limit
+    errors = no_result if estimate is None else pose_errors(estimate, case.truth, case.data, case.size)
     return Record(
-        **identity,
-        rotation_deg=errors.rotation_deg,
-        scale_error=errors.scale,
-        translation_error=errors.translation,
-        success=errors.success,
-        seconds=outcome.seconds,
+        task.group,
+        task.pair.name,
+        task.scale,
+        task.method,
+        errors.rotation_deg,
+        errors.scale,
+        errors.translation,
+        errors.success,
+        seconds,
+        failure=failure,
+        **verdict,
     )
 
 
