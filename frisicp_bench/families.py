@@ -14,8 +14,10 @@ SHAPE_CLASSES = ("apple", "chicken", "deer", "horse")
 # sees about a third of it, from the side, the back and the other side.
 MAP_SCANS = ("bun090.ply", "bun180.ply", "bun270.ply", "bun315.ply")
 # The benchmark's scan-in-map families: every 4th scan point (7,600-10,100 points) onto the
-# 8,171-point reconstruction, so that all six methods on 4 scans x 15 scales cost minutes, not
-# the half hour of the full resolution (benchmarks/partial_overlap.py runs that, 10x fewer methods).
+# 8,171-point reconstruction. At full resolution the six methods took ~50 s per scan and scale on
+# the shared 2-core machine (the paper's FRISICP 17-30 s of it: 100 iterations on each level),
+# most of an hour for 4 scans x 15 scales; thinned, ~7 s. benchmarks/partial_overlap.py runs the
+# full resolution with the default config and Open3D.
 MAP_FILE = "bun_zipper_res2.ply"
 SCAN_EVERY = 4
 
