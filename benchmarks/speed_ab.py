@@ -106,7 +106,8 @@ class Worker:
 
 
 def extract_core(revision: str, into: Path) -> tuple[Path, str]:
-    """frisicp_core at ``revision`` under ``into``/<name>/ (the working tree's own folder for WORKTREE)."""
+    """frisicp_core at ``revision`` under ``into``/<name>/ (the working tree's own folder for WORKTREE),
+    and which commit last changed it there."""
     if revision == WORKTREE:
         return ROOT, describe("HEAD") + ("-dirty" if dirty() else "")
     target = into / revision.replace("/", "_").replace("^", "_parent").replace("~", "_back")
@@ -124,9 +125,20 @@ def extract_core(revision: str, into: Path) -> tuple[Path, str]:
 
 
 def describe(revision: str) -> str:
-    """``hash (date): subject``, the subject cut at 70 characters."""
+    """The last commit that changed frisicp_core at ``revision``: ``hash (date): subject``, cut short."""
     line = subprocess.run(
-        ["git", "-C", str(ROOT), "log", "-1", "--format=%h (%ad): %s", "--date=short", revision],
+        [
+            "git",
+            "-C",
+            str(ROOT),
+            "log",
+            "-1",
+            "--format=%h (%ad): %s",
+            "--date=short",
+            revision,
+            "--",
+            "frisicp_core",
+        ],
         capture_output=True,
         text=True,
         check=True,
