@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo test lint config bench bench-quick bench-paper bench-paper-quick bench-node bench-bag clean
+.PHONY: setup demo test lint config bench bench-quick bench-paper bench-paper-quick bench-partial bench-node bench-bag clean
 
 $(STAMP): setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
@@ -45,6 +45,11 @@ bench-paper: $(STAMP)
 # The CI subset (< 2 min): keeps the benchmark code working; writes build/bench-quick/.
 bench-paper-quick: $(STAMP)
 	OMP_NUM_THREADS=1 $(BIN)/frisicp bench --quick
+
+# Partial overlap (scans in the bunny map, the map in scans, scan pairs, outliers, noise) with the
+# default config, Open3D beside it when installed -> docs/partial_overlap.md; JOBS=1 for steadier timings.
+bench-partial: $(STAMP)
+	$(BIN)/python benchmarks/partial_overlap.py --jobs $(or $(JOBS),2)
 
 # register_node at 10 Hz with 100k-point clouds (docs/node.md); DURATION=300 for the growth check.
 bench-node: $(STAMP)

@@ -39,6 +39,7 @@ class Family:
     model: FloatArray
     true_pose: bool  # False: the placement is a reference, not ground truth
     reference_rms: float | None = None  # symmetric RMS of the reference placement
+    figure: str | None = None  # file name of a registration picture of this family, if one is drawn
 
     @property
     def dim(self) -> int:

@@ -51,9 +51,9 @@ def write_figures(run: BenchmarkRun, out_dir: Path) -> list[Path]:
         small = run.case(shown.name, _scale_near(run, shown.name, 0.1))
         written.append(_save(registration_figure(run, small), out_dir / f"registration_{stem}.png"))
         for family in families:
-            if family.kind == "3-D" and family.data is not family.model:  # the partial-overlap scans
+            if family.figure:  # the partial-overlap experiments: one picture each
                 scans = run.case(family.name, _scale_near(run, family.name, 0.8))
-                written.append(_save(registration_figure(run, scans), out_dir / "registration_scans.png"))
+                written.append(_save(registration_figure(run, scans), out_dir / family.figure))
     written.append(_save(success_figure(run), out_dir / "success_by_scale.png"))
     return written
 

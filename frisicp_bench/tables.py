@@ -9,7 +9,7 @@ from pathlib import Path
 
 from frisicp_core import Similarity
 
-from . import cases, metrics, reference
+from . import cases, families, metrics, reference
 from .runner import BenchmarkRun, CaseRecord
 from .summary import fmt, mean, median, select, speed_comparisons, success_rate
 from .targets import TargetCheck
@@ -177,8 +177,14 @@ def protocol_lines(run: BenchmarkRun) -> list[str]:
         "of those families are measured against that reference, and 'RMS / reference' compares with its RMS. "
         "A trimmed fit (FRISICP+) has another optimum than the untrimmed reference, so for it 'RMS / reference' is "
         "the measure there, not the pose agreement.",
-        "- 3-D families: `bun_zipper.ply` against a scaled copy of itself (the paper's protocol, true pose), and the "
-        "real scans bun045 (data) / bun000 (model) placed by the poses of `bun.conf` (partial overlap, true pose). "
+        "- 3-D families: `bun_zipper.ply` against a scaled copy of itself (the paper's protocol, true pose), the "
+        "real scans bun045 (data) / bun000 (model) placed by the poses of `bun.conf` (partial overlap, true pose), "
+        'and, beyond the paper, a scan in its map ("scan/k→zipper_res2"): each of the real scans '
+        f"{', '.join(s.removesuffix('.ply') for s in families.MAP_SCANS)} thinned to every "
+        f"{families.SCAN_EVERY}th point (data; every point lies on the map, but the scan covers about a third of it) "
+        f"onto the reconstruction `{families.MAP_FILE}` (model), placed by `bun.conf` (true pose), with the "
+        "protocol above. The full-resolution scans under the issue's own protocol (10 deg, 5 % shift, scaled about "
+        "the scan's centroid) and under this one: `benchmarks/partial_overlap.py`, docs/partial_overlap.md. "
         "Coordinates in mm.",
         "- Methods: FRISICP, ICP, Zinßer (scale ICP), Du (bounded scale) = `frisicp_core` with "
         "`RegistrationConfig.paper(method)` (identity start, no trimming, baselines single-level); FRISICP+ = "
@@ -225,7 +231,7 @@ def markdown_report(
         "",
         *paper_table(run, "3-D", "rms"),
         *paper_table(run, "3-D", "seconds"),
-        "## Speed on the bunny (same run)",
+        "## Speed on the 3-D families (same run)",
         "",
         "Mean seconds per case over the family's scales; the FRISICP configuration timed is the one with the higher "
         "success rate on the family (the paper's on a tie). All methods ran in this process, one after the other.",

@@ -11,7 +11,8 @@ NAME = "bench"
 SUMMARY = "run the paper's experiments on the real data; write tables, JSON and figures"
 DESCRIPTION = (
     "FRISICP against ICP, Zinßer's and Du's scale ICP (and Open3D when installed) "
-    "over the paper's 15 scale factors on MPEG-7 contours and the Stanford bunny."
+    "over the paper's 15 scale factors on MPEG-7 contours, the Stanford bunny, a pair of its scans "
+    "and four scans in the bunny as their map."
 )
 
 
@@ -19,7 +20,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--quick",
         action="store_true",
-        help="a small subset (3 scales, apple and the low-resolution bunny) for CI",
+        help="a small subset for CI (3 scales; apple, the low-resolution bunny and one scan in it)",
     )
     parser.add_argument(
         "--out",

@@ -7,15 +7,17 @@ import json
 import numpy as np
 import pytest
 from support.data import shared_file
+from threadpoolctl import threadpool_limits
 
 from frisicp_bench.cases import PAPER_SCALES, Family, make_cases
 from frisicp_bench.contours import outer_contour
+from frisicp_bench.families import scan_to_map_family
 from frisicp_bench.methods import MethodSpec, core_method
 from frisicp_bench.metrics import pose_errors, symmetric_rms
 from frisicp_bench.reference import reference_placement
 from frisicp_bench.runner import run_benchmark
 from frisicp_bench.targets import check_targets
-from frisicp_core import Method, RegistrationConfig, Similarity, bumpy_surface, closed_contour
+from frisicp_core import Method, RegistrationConfig, Similarity, bumpy_surface, closed_contour, nearest
 from frisicp_ros.cli import main as cli
 
 
@@ -148,3 +150,106 @@ def test_apple_contour_from_the_real_silhouette() -> None:
     # A closed outline of a ~200 px wide apple: hundreds of boundary pixels, all on the image.
     assert 400 < contour.shape[0] < 1200
     assert contour.min() >= 0 and contour.max() < 256
+
+
+def _write_ply(path, points_mm: np.ndarray) -> None:
+    """An ASCII PLY in metres, like the Stanford files."""
+    header = f"ply\nformat ascii 1.0\nelement vertex {len(points_mm)}\n"
+    header += "".join(f"property double {axis}\n" for axis in "xyz") + "end_header\n"
+    with path.open("w") as file:
+        file.write(header)
+        np.savetxt(file, points_mm / 1000.0, fmt="%.17g")
+
+
+# A scan's pose in the common frame, as a bun.conf line states it (p -> R(q)^T p + t, metres).
+_SCAN_POSE = "0.01 -0.02 0.005 0.0 0.38268343 0.0 0.92387953"  # 45 deg about y
+
+
+def _tiny_data_folder(root) -> tuple[np.ndarray, np.ndarray]:
+    """../shared/data in miniature: two apple silhouettes, a 1,500-point 'reconstruction' (mm)
+    and the scan bun090, the third of it with x > 20 mm, stored in its own frame."""
+    from PIL import Image
+
+    (root / "mpeg7").mkdir(parents=True)
+    rows, cols = np.mgrid[:48, :64]
+    for instance, squash in ((1, 1.0), (2, 1.15)):
+        blob = ((cols - 30) / 22.0) ** 2 + ((rows - 24) * squash / 15.0) ** 2 + 0.2 * (cols > 40) < 1.0
+        Image.fromarray((255 * blob).astype(np.uint8)).save(root / "mpeg7" / f"apple-{instance}.gif")
+    bunny = root / "bunny"
+    bunny.mkdir()
+    reconstruction = 60.0 * bumpy_surface(1500)
+    _write_ply(bunny / "bun_zipper_res2.ply", reconstruction)
+    seen = reconstruction[reconstruction[:, 0] > 20.0]
+    (bunny / "bun.conf").write_text(f"camera 0 0 0 0 0 0 1\nbmesh bun090.ply {_SCAN_POSE}\n")
+    pose = Similarity.from_quaternion(1.0, np.array(_SCAN_POSE.split()[3:], dtype=float), np.zeros(3))
+    placement = Similarity(1.0, pose.rotation.T, 1000.0 * np.array(_SCAN_POSE.split()[:3], dtype=float))
+    _write_ply(bunny / "bun090.ply", placement.inverse().apply(seen))
+    return reconstruction, seen
+
+
+def test_a_scan_in_its_map_is_placed_by_bun_conf_and_named_by_its_thinning(tmp_path) -> None:
+    reconstruction, seen = _tiny_data_folder(tmp_path)
+    family = scan_to_map_family(tmp_path, "bun090.ply", "bun_zipper_res2.ply", every=4, figure="picture.png")
+    assert family.name == "bun090/4→zipper_res2" and family.true_pose and family.figure == "picture.png"
+    np.testing.assert_allclose(family.model, reconstruction, atol=1e-9)
+    # Every 4th scan point, each back on the map where the scan saw it.
+    np.testing.assert_allclose(family.data, seen[::4], atol=1e-6)
+    distance_sq, _ = nearest(family.model, family.data)
+    assert distance_sq.max() < 1e-10
+    assert 0.2 < len(seen) / len(reconstruction) < 0.5  # a scan sees part of its map
+
+
+def test_each_partial_overlap_family_gets_its_own_registration_picture(tmp_path) -> None:
+    from frisicp_bench.figures import write_figures
+
+    surface = bumpy_surface(300)
+    families = [
+        Family("surface", "3-D", "u", surface, surface, true_pose=True),
+        Family(
+            "half→surface", "3-D", "u", surface[surface[:, 0] > 0], surface, true_pose=True, figure="a.png"
+        ),
+        Family(
+            "third→surface", "3-D", "u", surface[surface[:, 0] > 0.5], surface, true_pose=True, figure="b.png"
+        ),
+    ]
+    methods = [MethodSpec("frisicp-default", "FRISICP+", core_method(RegistrationConfig()))]
+    run = run_benchmark(families, methods, (0.9,), seed=0)
+    names = {path.name for path in write_figures(run, tmp_path)}
+    assert names == {"convergence_3d.png", "registration_3d.png", "a.png", "b.png", "success_by_scale.png"}
+
+
+def test_quick_bench_registers_a_scan_in_its_map_beside_the_other_families(tmp_path, capsys) -> None:
+    _tiny_data_folder(tmp_path / "data")
+    out = tmp_path / "out"
+    args = [
+        "bench",
+        "--quick",
+        "--data",
+        str(tmp_path / "data"),
+        "--out",
+        str(out),
+        "--no-open3d",
+        "--no-figures",
+    ]
+    with threadpool_limits(1):  # as `make bench-paper-quick` runs it: OpenMP threads only slow tiny queries
+        assert cli.main(args) == 0
+    document = json.loads((out / "results.json").read_text())
+    assert [f["name"] for f in document["families"]] == [
+        "apple 1→1",
+        "apple 2→1",
+        "bunny (bun_zipper_res2)",
+        "bun090/4→zipper_res2",
+    ]
+    scan_records = [r for r in document["records"] if r["family"] == "bun090/4→zipper_res2"]
+    assert {r["method"] for r in scan_records} == {
+        "frisicp",
+        "frisicp-default",
+        "icp",
+        "scale-icp",
+        "bounded-icp",
+    }
+    assert {r["scale"] for r in scan_records} == {0.1, 0.9, 2.9}
+    report = (out / "README.md").read_text().splitlines()
+    success_table = report[report.index("## Success rate per family") :]
+    row = next(line for line in success_table if line.startswith("| bun090/4→zipper_res2 |"))
+    assert row.count("%") == 5  # one success rate per method, side by side

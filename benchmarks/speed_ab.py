@@ -1,0 +1,288 @@
+"""Speed of ``register`` at two revisions of frisicp_core, on `make bench`'s full-overlap cases, interleaved.
+
+On a shared machine two timing runs an hour apart cannot tell a 20 % regression from a busier
+machine. This script times both revisions in one session, alternating case by case: it extracts
+frisicp_core at each revision (``git archive``; the working tree for ``--after`` by default),
+starts one worker process per revision (each imports only its own frisicp_core), and sends
+both the same cases of ``benchmarks/core_speed.py`` — the bunny reconstruction (35,947 points)
+against a copy scaled by each of the 15 scales, rotated 10 deg and shifted — timing
+``register(data, model)`` with each revision's default ``RegistrationConfig()``, repeat after
+repeat. Load then slows both alike; the ratio of the medians is the measurement.
+
+Usage::
+
+    python benchmarks/speed_ab.py 7e9cfcc^            # before the partial-overlap core vs the working tree
+    python benchmarks/speed_ab.py A --after B --threads 0 --repeats 7 --out docs/speed_ab.md
+
+``--threads 1`` (default) sets OMP_NUM_THREADS=1 in both workers, as ``make bench-paper`` does;
+0 leaves OpenMP's default. Exits 0 without measuring when the bunny is absent, saying so.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import tarfile
+import tempfile
+import time
+from datetime import date
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+WORKTREE = "worktree"
+
+
+def worker() -> int:
+    """Serve timing requests on stdin, one JSON line each: {"scale": s} -> seconds and accuracy."""
+    import numpy as np
+    from core_speed import BUNNY, rotation_10deg
+
+    import frisicp_core
+    from frisicp_core import Similarity, register, rotation_angle
+    from frisicp_core.io import read_points
+
+    model = read_points(BUNNY)
+    print(json.dumps({"core": str(Path(frisicp_core.__file__).parent)}), flush=True)
+    for line in sys.stdin:
+        scale = json.loads(line)["scale"]
+        forward = Similarity(scale, rotation_10deg(), np.array([0.01, -0.02, 0.015]))
+        data = forward.apply(model)
+        start = time.perf_counter()
+        result = register(data, model)
+        seconds = time.perf_counter() - start
+        truth = forward.inverse()
+        rotation = float(np.degrees(rotation_angle(result.similarity.rotation @ truth.rotation.T)))
+        scale_error = abs(result.similarity.scale / truth.scale - 1.0)
+        print(
+            json.dumps({"seconds": seconds, "rotation_deg": rotation, "scale_error": scale_error}), flush=True
+        )
+    return 0
+
+
+class Worker:
+    """One revision's frisicp_core in its own process."""
+
+    def __init__(self, label: str, core_parent: Path, threads: int) -> None:
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(core_parent), str(ROOT / "benchmarks")]))
+        if threads:
+            env["OMP_NUM_THREADS"] = str(threads)
+        else:
+            env.pop("OMP_NUM_THREADS", None)
+        self.label = label
+        self.process = subprocess.Popen(
+            [sys.executable, str(Path(__file__).resolve()), "--worker"],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            env=env,
+            cwd=tempfile.gettempdir(),  # not the repository: its frisicp_core must not shadow PYTHONPATH's
+        )
+        self.core = self._read()["core"]
+        if Path(self.core).parent.resolve() != core_parent.resolve():
+            raise RuntimeError(f"{label}: imported {self.core}, not the revision's copy in {core_parent}")
+
+    def time(self, scale: float) -> dict[str, float]:
+        assert self.process.stdin is not None
+        self.process.stdin.write(json.dumps({"scale": scale}) + "\n")
+        self.process.stdin.flush()
+        return self._read()
+
+    def _read(self) -> dict:
+        assert self.process.stdout is not None
+        line = self.process.stdout.readline()
+        if not line:
+            raise RuntimeError(f"worker {self.label} exited (code {self.process.wait()})")
+        return json.loads(line)
+
+    def close(self) -> None:
+        assert self.process.stdin is not None
+        self.process.stdin.close()
+        self.process.wait()
+
+
+def extract_core(revision: str, into: Path) -> tuple[Path, str]:
+    """frisicp_core at ``revision`` under ``into``/<name>/ (the working tree's own folder for WORKTREE),
+    and which commit last changed it there."""
+    if revision == WORKTREE:
+        return ROOT, describe("HEAD") + ("-dirty" if dirty() else "")
+    target = into / revision.replace("/", "_").replace("^", "_parent").replace("~", "_back")
+    target.mkdir()
+    archive = subprocess.run(
+        ["git", "-C", str(ROOT), "archive", "--format=tar", revision, "frisicp_core"],
+        capture_output=True,
+        check=True,
+    ).stdout
+    archive_path = target / "core.tar"
+    archive_path.write_bytes(archive)
+    with tarfile.open(archive_path) as tar:
+        tar.extractall(target, filter="data")
+    return target, describe(revision)
+
+
+def describe(revision: str) -> str:
+    """The last commit that changed frisicp_core at ``revision``: ``hash (date): subject``, cut short."""
+    line = subprocess.run(
+        [
+            "git",
+            "-C",
+            str(ROOT),
+            "log",
+            "-1",
+            "--format=%h (%ad): %s",
+            "--date=short",
+            revision,
+            "--",
+            "frisicp_core",
+        ],
+        capture_output=True,
+        text=True,
+        check=True,
+    ).stdout.strip()
+    return line if len(line) <= 90 else line[:89] + "…"
+
+
+def dirty() -> bool:
+    status = subprocess.run(
+        ["git", "-C", str(ROOT), "status", "--porcelain", "frisicp_core"], capture_output=True, text=True
+    )
+    return bool(status.stdout.strip())
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    parser.add_argument("before", nargs="?", help="git revision of the reference core, e.g. 7e9cfcc^")
+    parser.add_argument(
+        "--after", default=WORKTREE, help="git revision to compare (default: the working tree)"
+    )
+    parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--threads", type=int, default=1, help="OMP_NUM_THREADS of the workers; 0: unset")
+    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "speed_ab.md")
+    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    args = parser.parse_args()
+    if args.worker:
+        return worker()
+    if args.before is None:
+        parser.error("the reference revision is required")
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from core_speed import BUNNY, SCALES
+
+    if not BUNNY.exists():
+        print(
+            f"speed_ab: skipped, no data: {BUNNY} is absent (../shared/data beside the repo)", file=sys.stderr
+        )
+        return 0
+    load_start = os.getloadavg()[0]
+    with tempfile.TemporaryDirectory() as folder:
+        cores = {
+            label: extract_core(rev, Path(folder))
+            for label, rev in (("before", args.before), ("after", args.after))
+        }
+        workers = {label: Worker(label, parent, args.threads) for label, (parent, _) in cores.items()}
+        try:
+            for w in workers.values():
+                w.time(SCALES[0])  # warm-up: imports, first trees
+            samples: dict[str, dict[float, list[dict[str, float]]]] = {
+                label: {s: [] for s in SCALES} for label in workers
+            }
+            order = list(workers)
+            for repeat in range(args.repeats):
+                for scale in SCALES:
+                    # Alternate who goes first, so neither always follows the other's cache footprint.
+                    for label in order if (repeat + SCALES.index(scale)) % 2 == 0 else order[::-1]:
+                        samples[label][scale].append(workers[label].time(scale))
+                print(f"repeat {repeat + 1}/{args.repeats} done", flush=True)
+        finally:
+            for w in workers.values():
+                w.close()
+    rows = []
+    for scale in SCALES:
+        row: dict[str, float] = {"s": scale}
+        for label in workers:
+            runs = samples[label][scale]
+            row[f"{label}_ms"] = 1e3 * statistics.median(r["seconds"] for r in runs)
+            row[f"{label}_rotation_deg"] = max(r["rotation_deg"] for r in runs)
+            row[f"{label}_scale_error"] = max(r["scale_error"] for r in runs)
+        row["ratio"] = row["after_ms"] / row["before_ms"]
+        rows.append(row)
+    total = {label: sum(r[f"{label}_ms"] for r in rows) for label in workers}
+    summary = {
+        "median_ratio": statistics.median(r["ratio"] for r in rows),
+        "worst_ratio": max(r["ratio"] for r in rows),
+        "total_ratio": total["after"] / total["before"],
+        "median_before_ms": statistics.median(r["before_ms"] for r in rows),
+        "median_after_ms": statistics.median(r["after_ms"] for r in rows),
+        "load_average_start": load_start,
+        "load_average_end": os.getloadavg()[0],
+    }
+    for r in rows:
+        print(
+            f"s={r['s']:<4} before {r['before_ms']:7.1f} ms  after {r['after_ms']:7.1f} ms  ratio {r['ratio']:.2f}"
+        )
+    print(
+        f"median ratio {summary['median_ratio']:.2f}, worst {summary['worst_ratio']:.2f}, "
+        f"sum over scales {summary['total_ratio']:.2f} (after / before)"
+    )
+    write_report(args, cores, rows, summary)
+    return 0
+
+
+def write_report(
+    args: argparse.Namespace,
+    cores: dict[str, tuple[Path, str]],
+    rows: list[dict[str, float]],
+    summary: dict[str, float],
+) -> None:
+    threads = f"OMP_NUM_THREADS={args.threads}" if args.threads else "OpenMP's default threads"
+    command = f"python benchmarks/speed_ab.py {args.before}" + (
+        f" --after {args.after}" if args.after != WORKTREE else ""
+    )
+    command += "".join(
+        f" --{name} {value}"
+        for name, value, default in (("repeats", args.repeats, 5), ("threads", args.threads, 1))
+        if value != default
+    )
+    lines = [
+        "# Core speed before and after: `register` on the full-overlap cases of `make bench`, interleaved",
+        "",
+        f"Generated by `{command}` on {date.today().isoformat()} ({platform.machine()}, {os.cpu_count()} CPUs, "
+        f"Python {platform.python_version()}, {threads}); medians of {args.repeats} runs per scale, the two "
+        "revisions alternating case by case in one session (see the script's docstring).",
+        "",
+        f"- before: {cores['before'][1]}",
+        f"- after: {cores['after'][1]}",
+        f"- load average {summary['load_average_start']:.2f} at the start, {summary['load_average_end']:.2f} at the "
+        "end: the machine is shared, so absolute times are inflated and noisy; the ratios are what this measures.",
+        "",
+        f"**after / before: median over the 15 scales {summary['median_ratio']:.2f}, worst scale "
+        f"{summary['worst_ratio']:.2f}, total time {summary['total_ratio']:.2f}** (median register "
+        f"{summary['median_before_ms']:.0f} ms before, {summary['median_after_ms']:.0f} ms after).",
+        "",
+        "| s | before ms | after ms | after / before | before: worst rotation error (deg), scale error | after: same |",
+        "|---|---|---|---|---|---|",
+    ]
+    for r in rows:
+        lines.append(
+            f"| {r['s']:.1f} | {r['before_ms']:.1f} | {r['after_ms']:.1f} | {r['ratio']:.2f} | "
+            f"{r['before_rotation_deg']:.1e}, {r['before_scale_error']:.1e} | "
+            f"{r['after_rotation_deg']:.1e}, {r['after_scale_error']:.1e} |"
+        )
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text("\n".join(lines) + "\n")
+    document = {
+        "command": command,
+        "before": cores["before"][1],
+        "after": cores["after"][1],
+        "summary": summary,
+        "rows": rows,
+    }
+    args.out.with_suffix(".json").write_text(json.dumps(document, indent=1) + "\n")
+    print(f"wrote {args.out} and {args.out.with_suffix('.json')}")
+
+
+if __name__ == "__main__":
+    sys.exit(main())
