@@ -109,3 +109,16 @@ def test_nearest_is_a_one_off_tree():
     points, queries = rng.normal(size=(200, 2)), rng.normal(size=(30, 2))
     dist_sq, idx = nearest(points, queries)
     assert_exact(points, queries, dist_sq, idx)
+
+
+def test_spatial_order_is_a_permutation_that_puts_neighbours_side_by_side():
+    from frisicp_core import bumpy_surface
+    from frisicp_core.sampling import needs_spatial_order, spatial_order
+
+    points = bumpy_surface(5000)  # random storage order
+    order = spatial_order(points)
+    assert sorted(order.tolist()) == list(range(5000))
+    ordered = points[order]
+    step = np.linalg.norm(np.diff(ordered, axis=0), axis=1)
+    assert np.median(step) < 0.1 * np.median(np.linalg.norm(np.diff(points, axis=0), axis=1))
+    assert needs_spatial_order(points, 1.0) and not needs_spatial_order(ordered, 1.0)

@@ -89,3 +89,16 @@ def test_fixed_and_bounded_scale():
     y = 3.0 * x
     assert estimate_similarity(x, y, with_scale=False).scale == 1.0
     assert estimate_similarity(x, y, scale_bounds=(0.5, 2.0)).scale == pytest.approx(2.0)
+
+
+def test_symmetric_scale_makes_swapping_the_sets_give_the_inverse():
+    """Horn's symmetric scale: the fit of y onto x is exactly the inverse of x onto y, even with
+    noise (Umeyama's scale is not: it shrinks towards the noisier side)."""
+    rng = np.random.default_rng(5)
+    x = rng.normal(size=(200, 3))
+    y = Similarity(2.0, random_rotation(3, rng), [1.0, 2.0, 3.0]).apply(x) + rng.normal(0, 0.3, (200, 3))
+    forward = estimate_similarity(x, y, symmetric=True)
+    backward = estimate_similarity(y, x, symmetric=True)
+    np.testing.assert_allclose((forward @ backward).matrix(), np.eye(4), atol=1e-9)
+    umeyama = estimate_similarity(x, y) @ estimate_similarity(y, x)
+    assert abs(umeyama.scale - 1.0) > 1e-3

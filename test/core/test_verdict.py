@@ -1,0 +1,57 @@
+"""The plausibility verdict: what any correct registration satisfies, checked on every result."""
+
+import numpy as np
+import pytest
+
+from frisicp_core import Similarity, bumpy_surface, judge, register
+from frisicp_core.verdict import spread
+
+GOOD = dict(
+    converged=True, rms=0.01, overlap_forward=0.9, overlap_backward=0.4, moment_scale=2.0, model_radius=1.0
+)
+
+
+def test_a_plausible_result_is_reliable_with_no_reason():
+    verdict = judge(Similarity(2.5, np.eye(3), np.zeros(3)), **GOOD)
+    assert verdict.reliable and verdict.reason == ""
+
+
+@pytest.mark.parametrize(
+    ("change", "reason"),
+    [
+        (dict(converged=False), "did not converge"),
+        (dict(rms=float("nan")), "not finite"),
+        (dict(rms=0.5), "RMS"),
+        (dict(overlap_backward=0.02), "overlap"),
+        (dict(spreads=(1e15, 1.0)), "not the points of one scene"),
+    ],
+)
+def test_each_failed_check_is_named(change, reason):
+    verdict = judge(Similarity(2.5, np.eye(3), np.zeros(3)), **{**GOOD, **change})
+    assert not verdict.reliable and reason in verdict.reason
+
+
+@pytest.mark.parametrize("scale", [1e-39, 1.5e40, 0.1, 30.0])
+def test_an_absurd_scale_is_never_reliable(scale):
+    verdict = judge(Similarity(scale, np.eye(3), np.zeros(3)), **GOOD)
+    assert not verdict.reliable and "scale" in verdict.reason
+
+
+def test_spread_tells_coordinates_from_garbage_numbers():
+    surface = bumpy_surface(3000)
+    with np.errstate(invalid="ignore"):  # some swapped bytes are NaN patterns
+        wrong_byte_order = surface.astype("<f4").view(">f4").astype(np.float64)
+    wrong_byte_order = wrong_byte_order[np.isfinite(wrong_byte_order).all(axis=1)]
+    assert spread(surface) < 3
+    assert spread(wrong_byte_order) > 1e6
+
+
+def test_a_garbage_model_never_yields_a_reliable_result():
+    """Valid data against random bytes read as floats: whatever the fit, it is not believable."""
+    rng = np.random.default_rng(0)
+    data = bumpy_surface(500)
+    for _ in range(10):
+        with np.errstate(invalid="ignore"):
+            garbage = np.frombuffer(rng.bytes(500 * 12), "<f4").reshape(-1, 3).astype(np.float64)
+        garbage = garbage[np.isfinite(garbage).all(axis=1)]
+        assert not register(data, garbage).reliable
