@@ -195,6 +195,18 @@ class _Pyramid:
         return self._built[index]
 
 
+def _close_warm_start(solver: _Solver, level: _Level, sim: Similarity) -> _Pass | None:
+    """The pass of ``sim`` on ``level`` (the second, dense: exact neighbours, enough points for
+    a steady step) if the step it proposes is below ``coarse_relative_motion`` of the model's
+    size, else None. A start that close leaves the coarsest level nothing to do: iterating on
+    thinned sets would only move the estimate towards their bias and back."""
+    pose = PoseBatch.of([sim])
+    probe = solver.correspond(level, pose)
+    stepped, valid = solver.step(level, probe)
+    tolerance = solver.config.criteria.coarse_relative_motion * solver.model_radius
+    return probe if valid[0] and level.motion(pose, stepped)[0] <= tolerance else None
+
+
 def _final_on_dense_targets(
     solver: _Solver, level: _Level, finalists: list[Similarity], relative_motion: float
 ) -> tuple[Similarity, LevelReport, _Pass]:
@@ -576,18 +588,31 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
     finalists = [families[0][0]]
     if sum(len(family) for family in families) > 1:
         finalists = solver.screen(levels.screening_level(), families)
-    reports = []
-    first = 0
-    if len(finalists) > 1:
+    reports: list[LevelReport] = []
+    sim, first, probe = finalists[0], 0, None
+    if config.initial is not None and config.dense_targets and last > 0:
+        # Tracking: where the warm start is already finer than the coarsest level resolves,
+        # skip it; else converge on the thinned screening level, whose small trees answer
+        # far-off queries cheaply, before the dense levels.
+        probe = _close_warm_start(solver, levels[1], sim)
+        if probe is None:
+            sim, report, _ = solver.run_level(
+                0, levels.screening_level(), sim, relative_motion=_level_motion(config, 0, last)
+            )
+            reports.append(report)
+        first = 1
+    elif len(finalists) > 1:
         sim, report, pairs = _final_on_dense_targets(
             solver, levels[0], finalists, _level_motion(config, 0, last)
         )
         reports, first = [report], 1
-    else:
-        sim = finalists[0]
     for index in range(first, last + 1):
         sim, report, pairs = solver.run_level(
-            index, levels[index], sim, relative_motion=_level_motion(config, index, last)
+            index,
+            levels[index],
+            sim,
+            relative_motion=_level_motion(config, index, last),
+            first_pass=probe if index == first else None,
         )
         reports.append(report)
 
