@@ -33,8 +33,10 @@ lint: $(STAMP)
 config: $(STAMP)
 	$(BIN)/python -m frisicp_ros.stream.settings > config/frisicp.yaml.new && mv config/frisicp.yaml.new config/frisicp.yaml
 
+# register in aligned bidirectional passes, cold and warm (docs/core_speed.md); Open3D side by side
+# when installed. One OpenMP thread, as the node and the bag workers run.
 bench: $(STAMP)
-	$(BIN)/python benchmarks/core_speed.py
+	OMP_NUM_THREADS=1 $(BIN)/python benchmarks/core_speed.py
 
 # The paper's experiments on ../shared/data -> docs/benchmarks/ (tables, JSON, figures).
 # One thread per method: on a shared 2-core machine OpenMP's idle-waiting threads make
