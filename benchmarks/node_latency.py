@@ -18,7 +18,9 @@ publishes a latched 100,000-point model and 100,000-point data clouds (x y z + i
   counted);
 - outputs/s, data clouds without an answer (newest-wins drops and DDS losses), latency p50, p95
   and max: end to end (publish -> ``~/transform`` received, every pair) and as the node
-  measures it (data-cloud receipt -> outputs published, its last 200 pairs);
+  measures it (data-cloud callback -> outputs published, its last 200 pairs), and the node's
+  view of the data clouds' DDS transport (publication -> receipt) and of the callback delay
+  (receipt -> callback: how long the executor waited, e.g. for the GIL);
 - the node's timing split (conversion, down-sampling, output) as ratios of its registration
   time, registration CPU vs wall time, the node's CPU use;
 - the node's resident memory over the run and its trend (least squares, MiB per minute);
@@ -380,6 +382,12 @@ def run(args: argparse.Namespace, truth_name: str) -> dict[str, Any]:
         "node_latency_p50_ms": diag_value(last, "latency p50 (ms)"),
         "node_latency_p95_ms": diag_value(last, "latency p95 (ms)"),
         "node_latency_max_ms": max((diag_value(d, "latency max (ms)") for d in diagnostics), default=None),
+        "data_transport_p50_ms": diag_value(last, "data transport p50 (ms)"),
+        "data_transport_p95_ms": diag_value(last, "data transport p95 (ms)"),
+        "callback_delay_p95_ms": diag_value(last, "callback delay p95 (ms)"),
+        "callback_delay_max_ms": max(
+            (diag_value(d, "callback delay max (ms)") for d in diagnostics), default=None
+        ),
         "estimates_checked": len(errors),
         "estimates_unmatched": unmatched,
         "accuracy_failures": failures,

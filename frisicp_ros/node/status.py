@@ -52,13 +52,20 @@ class NodeStatus:
         self._registered_since_report = 0
         self._last_registered: Registered | None = None
         self._latency: deque[float] = deque(maxlen=window)
+        self._transport: deque[float] = deque(maxlen=window)  # data clouds: publication -> DDS receipt
+        self._callback_delay: deque[float] = deque(maxlen=window)  # DDS receipt -> callback
         # Per registered pair: conversion, down-sampling, registration (wall, CPU), outputs.
         self._seconds: dict[str, deque[float]] = {key: deque(maxlen=window) for key in _SPLIT}
         self._reported_at = time.monotonic()
 
-    def count_input(self, topic: str) -> None:
+    def count_input(self, topic: str, transport: float | None = None, callback: float | None = None) -> None:
+        """A cloud arrived on ``topic``: ``transport`` seconds from its publication to its receipt by
+        DDS (the publisher's clock), then ``callback`` seconds until its callback ran."""
         with self._lock:
             self._inputs[topic] += 1
+            if topic == "data" and transport is not None and callback is not None:
+                self._transport.append(transport)
+                self._callback_delay.append(callback)
 
     def record(self, outcome: PairOutcome, latency: float | None, publish_seconds: float) -> None:
         """One processed pair; ``latency`` from data receipt to publication (None in replay)."""
@@ -150,6 +157,18 @@ class NodeStatus:
                 "latency p95 (ms)": f"{p95:.1f}",
                 "latency max (ms)": f"{worst:.1f}",
             }
+        if self._callback_delay:
+            transport = np.percentile(np.array(self._transport) * 1e3, [50, 95])
+            callback = np.percentile(np.array(self._callback_delay) * 1e3, [50, 95, 100])
+            values.update(
+                {
+                    "data transport p50 (ms)": f"{transport[0]:.1f}",
+                    "data transport p95 (ms)": f"{transport[1]:.1f}",
+                    "callback delay p50 (ms)": f"{callback[0]:.2f}",
+                    "callback delay p95 (ms)": f"{callback[1]:.2f}",
+                    "callback delay max (ms)": f"{callback[2]:.2f}",
+                }
+            )
         mean = {key: float(np.mean(seconds)) for key, seconds in self._seconds.items()}
         core = mean["registration"]
         node = mean["conversion"] + mean["down-sampling"] + mean["output"]
