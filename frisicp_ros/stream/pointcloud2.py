@@ -214,8 +214,10 @@ def read_cloud(
     sampling = 0.0
     if max_points and finite > max_points:
         drawn = time.perf_counter()
-        keep = np.sort(rng.choice(finite, size=int(max_points), replace=False))  # = downsample()
-        chosen = keep if finite_index is None else finite_index[keep]
+        # downsample()'s subset, np.sort(rng.choice(...)), without the sort: mark, then list in order
+        marked = np.zeros(finite, dtype=bool)
+        marked[rng.choice(finite, size=int(max_points), replace=False)] = True
+        chosen = np.flatnonzero(marked) if finite_index is None else finite_index[marked]
         sampling = time.perf_counter() - drawn
     points = _gather(columns, chosen)
     return CloudPoints(points, finite, finite, time.perf_counter() - started - sampling, sampling)
