@@ -53,9 +53,10 @@ bench-paper-quick: $(STAMP)
 bench-partial: $(STAMP)
 	$(BIN)/python benchmarks/partial_overlap.py --jobs $(or $(JOBS),2)
 
-# register_node at 10 Hz with 100k-point clouds (docs/node.md); DURATION=300 for the growth check.
+# register_node at 10 Hz with 100k-point clouds, default parameters, a static then a moving truth
+# (docs/node.md); DURATION=300 for the growth check, TRUTH=static|moving for one of them.
 bench-node: $(STAMP)
-	$(BIN)/python benchmarks/node_latency.py --duration $(or $(DURATION),60)
+	$(BIN)/python benchmarks/node_latency.py --duration $(or $(DURATION),60) --truth $(or $(TRUTH),both)
 
 # frisicp bag throughput, --jobs 1 and 2, on 200 pairs of 30k-point clouds (docs/bag.md); PAIRS=20 for a look.
 bench-bag: $(STAMP)

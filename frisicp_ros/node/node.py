@@ -121,8 +121,11 @@ class RegistrationNode(Node):
             self.create_subscription(
                 PointCloud2, "model", self._on_model, SUBSCRIPTION_QOS[str(values["model_qos"])]
             )
-            self.create_subscription(
-                PointCloud2, "data", self._on_data, SUBSCRIPTION_QOS[str(values["data_qos"])]
+            self.create_subscription(  # two parameters: rclpy passes the message info too
+                PointCloud2,
+                "data",
+                self._on_data,  # type: ignore[arg-type]  # rclpy's stubs know one-parameter callbacks only
+                SUBSCRIPTION_QOS[str(values["data_qos"])],
             )
         self.create_service(Trigger, "~/reset", self._on_reset)
         self.add_on_set_parameters_callback(self._validate_parameters)
@@ -150,8 +153,14 @@ class RegistrationNode(Node):
             pairs = self._pairer.add_model(stamp_ns(msg), msg)
         self._hand_over(pairs)
 
-    def _on_data(self, msg: PointCloud2) -> None:
-        self._status.count_input("data")
+    def _on_data(self, msg: PointCloud2, info: dict[str, int]) -> None:
+        """A data cloud; ``info`` (rclpy's message info) has its DDS source and receipt times."""
+        now_ns = time.time_ns()
+        source, received = info.get("source_timestamp", 0), info.get("received_timestamp", 0)
+        if source > 0 and received > 0:
+            self._status.count_input("data", (received - source) * 1e-9, (now_ns - received) * 1e-9)
+        else:
+            self._status.count_input("data")
         with self._pairer_lock:
             pairs = self._pairer.add_data(stamp_ns(msg), msg)
             no_model = self._models_received == 0

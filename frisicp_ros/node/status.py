@@ -23,6 +23,8 @@ import numpy as np
 from frisicp_ros.stream.pipeline import PairOutcome, Registered, Rejected
 
 OK, WARN, ERROR = 0, 1, 2  # diagnostic_msgs/DiagnosticStatus levels
+# The timing split of registered pairs, as averaged for /diagnostics.
+_SPLIT = ("conversion", "down-sampling", "registration", "registration CPU", "output")
 ERROR_AFTER_FAILURES = 3  # consecutive failed pairs (rejected, unreliable, error) before ERROR
 
 
@@ -50,13 +52,20 @@ class NodeStatus:
         self._registered_since_report = 0
         self._last_registered: Registered | None = None
         self._latency: deque[float] = deque(maxlen=window)
-        self._node_seconds: deque[float] = deque(maxlen=window)  # conversion + publication
-        self._core_seconds: deque[float] = deque(maxlen=window)
+        self._transport: deque[float] = deque(maxlen=window)  # data clouds: publication -> DDS receipt
+        self._callback_delay: deque[float] = deque(maxlen=window)  # DDS receipt -> callback
+        # Per registered pair: conversion, down-sampling, registration (wall, CPU), outputs.
+        self._seconds: dict[str, deque[float]] = {key: deque(maxlen=window) for key in _SPLIT}
         self._reported_at = time.monotonic()
 
-    def count_input(self, topic: str) -> None:
+    def count_input(self, topic: str, transport: float | None = None, callback: float | None = None) -> None:
+        """A cloud arrived on ``topic``: ``transport`` seconds from its publication to its receipt by
+        DDS (the publisher's clock), then ``callback`` seconds until its callback ran."""
         with self._lock:
             self._inputs[topic] += 1
+            if topic == "data" and transport is not None and callback is not None:
+                self._transport.append(transport)
+                self._callback_delay.append(callback)
 
     def record(self, outcome: PairOutcome, latency: float | None, publish_seconds: float) -> None:
         """One processed pair; ``latency`` from data receipt to publication (None in replay)."""
@@ -78,8 +87,19 @@ class NodeStatus:
             self._last_registered = outcome
             if latency is not None:
                 self._latency.append(latency)
-            self._node_seconds.append(outcome.timings.convert_seconds + publish_seconds)
-            self._core_seconds.append(outcome.timings.register_seconds)
+            timings = outcome.timings
+            for key, seconds in zip(
+                _SPLIT,
+                (
+                    timings.convert_seconds,
+                    timings.downsample_seconds,
+                    timings.register_seconds,
+                    timings.register_cpu_seconds,
+                    publish_seconds,
+                ),
+                strict=True,
+            ):
+                self._seconds[key].append(seconds)
 
     def record_error(self, error: str) -> None:
         """A pair whose publication raised ``error``; the worker goes on with the next pair."""
@@ -127,19 +147,47 @@ class NodeStatus:
             return StatusReport(level, message, values)
 
     def _latency_values(self) -> dict[str, str]:
-        if not self._core_seconds:
+        if not self._seconds["registration"]:
             return {}
         values = {}
         if self._latency:
-            p50, p95 = np.percentile(np.array(self._latency) * 1e3, [50, 95])
-            values = {"latency p50 (ms)": f"{p50:.1f}", "latency p95 (ms)": f"{p95:.1f}"}
-        core = float(np.mean(self._core_seconds))
-        node = float(np.mean(self._node_seconds))
+            p50, p95, worst = np.percentile(np.array(self._latency) * 1e3, [50, 95, 100])
+            values = {
+                "latency p50 (ms)": f"{p50:.1f}",
+                "latency p95 (ms)": f"{p95:.1f}",
+                "latency max (ms)": f"{worst:.1f}",
+            }
+        if self._callback_delay:
+            transport = np.percentile(np.array(self._transport) * 1e3, [50, 95])
+            callback = np.percentile(np.array(self._callback_delay) * 1e3, [50, 95, 100])
+            values.update(
+                {
+                    "data transport p50 (ms)": f"{transport[0]:.1f}",
+                    "data transport p95 (ms)": f"{transport[1]:.1f}",
+                    "callback delay p50 (ms)": f"{callback[0]:.2f}",
+                    "callback delay p95 (ms)": f"{callback[1]:.2f}",
+                    "callback delay max (ms)": f"{callback[2]:.2f}",
+                }
+            )
+        mean = {key: float(np.mean(seconds)) for key, seconds in self._seconds.items()}
+        core = mean["registration"]
+        node = mean["conversion"] + mean["down-sampling"] + mean["output"]
+
+        def share(seconds: float) -> str:
+            return f"{seconds / core:.4f}" if core > 0 else "nan"
+
         values.update(
             {
+                "conversion mean (ms)": f"{mean['conversion'] * 1e3:.2f}",
+                "down-sampling mean (ms)": f"{mean['down-sampling'] * 1e3:.2f}",
                 "registration mean (ms)": f"{core * 1e3:.1f}",
+                "registration CPU mean (ms)": f"{mean['registration CPU'] * 1e3:.1f}",
+                "output mean (ms)": f"{mean['output'] * 1e3:.2f}",
                 "node overhead mean (ms)": f"{node * 1e3:.2f}",
-                "node overhead / registration": f"{node / core:.4f}" if core > 0 else "nan",
+                "conversion / registration": share(mean["conversion"]),
+                "down-sampling / registration": share(mean["down-sampling"]),
+                "output / registration": share(mean["output"]),
+                "node overhead / registration": share(node),
             }
         )
         return values

@@ -28,6 +28,7 @@ from typing import Any
 import numpy as np
 
 from frisicp_core import RegistrationResult, Similarity
+from frisicp_core.similarity import rotation_to_quaternion
 from frisicp_ros.stream.pipeline import Registered
 from frisicp_ros.stream.pointcloud2 import CloudParts, aligned_cloud
 
@@ -136,7 +137,7 @@ def rosbags_message_types(typestore: Any = None) -> MessageTypes:
 
 def transform_stamped(similarity: Similarity, header: Any, child_frame_id: str, types: MessageTypes) -> Any:
     rotation, translation = _as_3d(similarity)
-    x, y, z, w = Similarity(1.0, rotation, translation).quaternion()
+    x, y, z, w = rotation_to_quaternion(rotation)
     transform = types["geometry_msgs/msg/Transform"](
         translation=types["geometry_msgs/msg/Vector3"](
             x=float(translation[0]), y=float(translation[1]), z=float(translation[2])

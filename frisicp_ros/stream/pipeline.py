@@ -9,7 +9,13 @@ A registered pair carries the core's plausibility verdict (``Registered.reliable
 ``reason``): an implausible result is reported, never used as a warm start. Only a reliable
 result becomes the next pair's warm start; any rejection or unreliable result clears it, so one
 garbage cloud cannot steer the pairs after it. (The core itself retries a warm start cold when
-the warm-started result is implausible; the pipeline does not retry.)
+the warm-started result is implausible; the pipeline does not retry.) With ``motion_model``
+constant_velocity the warm start is the last result moved on by the motion between the last two
+(``frisicp_ros.stream.motion``).
+
+Clouds are read with ``read_cloud``: finite points, the optional voxel grid (``voxel_size``),
+then the random cap (``max_points``). The model is read once per model message and kept in the
+spatial (Morton) order the core would otherwise compute again for every pair.
 
 Frames: a configured ``model_frame``/``data_frame`` must match; in synchronized mode a stream's
 frame must stay what it was at the last registered pair (else the pair is rejected; ``reset()``
@@ -25,7 +31,10 @@ from typing import Any, Literal
 import numpy as np
 
 from frisicp_core import RegistrationResult, Similarity, register
-from frisicp_ros.stream.pointcloud2 import CloudError, cloud_to_points
+from frisicp_core.points import rms_radius
+from frisicp_core.sampling import needs_spatial_order, spatial_order
+from frisicp_ros.stream.motion import MotionTracker
+from frisicp_ros.stream.pointcloud2 import CloudError, CloudPoints, read_cloud
 from frisicp_ros.stream.settings import PipelineSettings, settings_from
 
 RejectedInput = Literal["model", "data", "pair"]
@@ -33,8 +42,17 @@ RejectedInput = Literal["model", "data", "pair"]
 
 @dataclass(frozen=True)
 class Timings:
-    convert_seconds: float = 0.0  # both PointCloud2 -> numpy conversions
+    """Where a pair's time went (wall clock, the pipeline's thread)."""
+
+    convert_seconds: float = 0.0  # PointCloud2 -> float64 points, data and (when not cached) model
+    downsample_seconds: float = 0.0  # voxel grid and random cap, data and (when not cached) model
     register_seconds: float = 0.0  # frisicp_core.register
+    register_cpu_seconds: float = 0.0  # the same call's CPU time (less than wall: others ran)
+
+    @property
+    def input_seconds(self) -> float:
+        """Everything before the registration: conversion and down-sampling."""
+        return self.convert_seconds + self.downsample_seconds
 
 
 @dataclass(frozen=True)
@@ -108,27 +126,37 @@ class RegistrationPipeline:
 
     def __init__(self, settings: PipelineSettings | None = None) -> None:
         self.settings = settings or settings_from({})
-        self._previous: Similarity | None = None
+        self._motion = MotionTracker()  # the last consecutive reliable results
         self._model_cache: tuple[Any, np.ndarray] | None = None
         self._frames: dict[str, str] = {}
 
     @property
     def previous(self) -> Similarity | None:
-        """The warm-start similarity the next pair would start from (None: cold start)."""
-        return self._previous
+        """The last reliable result, which the next pair's warm start comes from (None: cold start)."""
+        return self._motion.last
+
+    def warm_start_for(self, stamp_ns: int) -> Similarity | None:
+        """Where a pair stamped ``stamp_ns`` would start (None: cold): the last result, or with
+        ``motion_model`` constant_velocity that result moved on by the last motion."""
+        if not self.settings.warm_start:
+            return None
+        if self.settings.motion_model == "none":
+            return self.previous
+        return self._motion.predict(stamp_ns)
 
     def reset(self) -> None:
         """Forget the warm start, the cached model and the frames seen so far."""
-        self._previous = None
+        self._motion.reset()
         self._model_cache = None
         self._frames = {}
 
     def update_settings(self, settings: PipelineSettings) -> None:
-        """New settings; anything they invalidate (point caps, dims) is forgotten."""
+        """New settings; anything they invalidate (point caps, voxels, dims) is forgotten."""
         old = self.settings
-        if (settings.dims, settings.max_points, settings.registration.seed) != (
+        if (settings.dims, settings.max_points, settings.voxel_size, settings.registration.seed) != (
             old.dims,
             old.max_points,
+            old.voxel_size,
             old.registration.seed,
         ):
             self.reset()
@@ -144,9 +172,9 @@ class RegistrationPipeline:
             # still reported per pair (with its type) instead of ending the stream.
             outcome = Rejected(**vars(header), reason=f"unexpected {describe(err)}", input="pair")
         if isinstance(outcome, Registered) and outcome.reliable:
-            self._previous = outcome.result.similarity
+            self._motion.update(header.stamp_ns, outcome.result.similarity)
         else:
-            self._previous = None  # a rejection or an implausible result: next pair starts cold
+            self._motion.reset()  # a rejection or an implausible result: next pair starts cold
         return outcome
 
     def _process(self, header: PairHeader, model_msg: Any, data_msg: Any) -> PairOutcome:
@@ -154,42 +182,53 @@ class RegistrationPipeline:
         frame_problem = self._check_frames(header.model_frame, header.data_frame)
         if frame_problem:
             return Rejected(**vars(header), reason=frame_problem, input="pair")
-        started = time.perf_counter()
         try:
-            model_points = self._model_points(model_msg)
+            model_points, model_read = self._model_points(model_msg)
         except CloudError as err:
             return Rejected(**vars(header), reason=f"model cloud: {err}", input="model")
         try:
-            data_points = cloud_to_points(
-                data_msg, settings.dims, settings.max_points, settings.registration.seed
-            )
+            data = self._read(data_msg)
         except CloudError as err:
             return Rejected(**vars(header), reason=f"data cloud: {err}", input="data")
-        converted = time.perf_counter()
-        initial = self._previous if settings.warm_start else None
+        initial = self.warm_start_for(header.stamp_ns)
+        started, started_cpu = time.perf_counter(), time.thread_time()
         try:
-            result = register(data_points, model_points, replace(settings.registration, initial=initial))
+            result = register(data.points, model_points, replace(settings.registration, initial=initial))
         except ValueError as err:  # degenerate geometry, too few points, coordinates that overflow
-            timings = Timings(converted - started, time.perf_counter() - converted)
+            timings = _timings(model_read, data, started, started_cpu)
             return Rejected(**vars(header), reason=f"registration: {err}", input="pair", timings=timings)
-        timings = Timings(converted - started, time.perf_counter() - converted)
+        timings = _timings(model_read, data, started, started_cpu)
         self._frames = {"model": header.model_frame, "data": header.data_frame}
         return Registered(
             **vars(header),
             result=result,
-            data_points=len(data_points),
+            data_points=len(data.points),
             model_points=len(model_points),
             timings=timings,
         )
 
-    def _model_points(self, model_msg: Any) -> np.ndarray:
-        """Convert the model once per message: in latest_model mode it is reused for every scan."""
-        if self._model_cache is not None and self._model_cache[0] is model_msg:
-            return self._model_cache[1]
+    def _read(self, msg: Any) -> CloudPoints:
         settings = self.settings
-        points = cloud_to_points(model_msg, settings.dims, settings.max_points, settings.registration.seed)
+        return read_cloud(
+            msg, settings.dims, settings.max_points, settings.registration.seed, settings.voxel_size
+        )
+
+    def _model_points(self, model_msg: Any) -> tuple[np.ndarray, CloudPoints | None]:
+        """The model's points, read once per message (in latest_model mode the same message serves
+        every scan) and put in spatial order once. Returns the read's costs when it was read now."""
+        if self._model_cache is not None and self._model_cache[0] is model_msg:
+            return self._model_cache[1], None
+        read = self._read(model_msg)
+        points = read.points
+        # The core puts a scattered cloud in Morton order on every call; doing it here, once, hands
+        # it the order it would compute (a sorted set sorts to itself).
+        started = time.perf_counter()
+        with np.errstate(all="ignore"):  # absurd coordinates are the core's to reject, with a reason
+            if needs_spatial_order(points, rms_radius(points)):
+                points = np.ascontiguousarray(points[spatial_order(points)])
+        read = replace(read, downsample_seconds=read.downsample_seconds + time.perf_counter() - started)
         self._model_cache = (model_msg, points)
-        return points
+        return points, read
 
     def _check_frames(self, model_frame: str, data_frame: str) -> str | None:
         """Frame ids must match the configured ones, and in synchronized mode stay constant.
@@ -211,8 +250,18 @@ class RegistrationPipeline:
                         f"frame mismatch: {side} cloud is in '{frame}' but this {side} stream was in"
                         f" '{seen}' (synchronized pairing needs fixed frames; call ~/reset to accept)"
                     )
-                self._previous = None
+                self._motion.reset()
         return None
+
+
+def _timings(model: CloudPoints | None, data: CloudPoints, started: float, started_cpu: float) -> Timings:
+    reads = [data] if model is None else [model, data]
+    return Timings(
+        convert_seconds=sum(read.convert_seconds for read in reads),
+        downsample_seconds=sum(read.downsample_seconds for read in reads),
+        register_seconds=time.perf_counter() - started,
+        register_cpu_seconds=time.thread_time() - started_cpu,
+    )
 
 
 def pair_header(model_msg: Any, data_msg: Any, dims: int) -> PairHeader:

@@ -12,6 +12,7 @@ No rclpy import here: the offline bag mode uses this module without ROS.
 from __future__ import annotations
 
 import itertools
+import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any, Literal, Protocol, TypeVar
@@ -19,6 +20,7 @@ from typing import Any, Literal, Protocol, TypeVar
 import numpy as np
 
 from frisicp_core import Similarity, downsample
+from frisicp_ros.stream.voxel import voxel_filter
 
 # sensor_msgs/PointField datatype constants (identical in rclpy and rosbags).
 INT8, UINT8, INT16, UINT16, INT32, UINT32, FLOAT32, FLOAT64 = range(1, 9)
@@ -146,31 +148,104 @@ def _validated_fields(fields: Sequence[PointFieldLike], point_step: int) -> dict
     return by_name
 
 
-def cloud_to_points(msg: Any, dims: int = 3, max_points: int | None = None, seed: int = 0) -> np.ndarray:
+@dataclass(frozen=True)
+class CloudPoints:
+    """What :func:`read_cloud` made of a message: the points and what it cost.
+
+    ``finite``: finite points in the message; ``voxels``: points left by the voxel grid (=
+    ``finite`` without one); ``points``: after the ``max_points`` cap. ``convert_seconds``:
+    reading the coordinate fields into float64 (only the points kept when there is no voxel
+    grid); ``downsample_seconds``: the voxel grid and the random cap.
+    """
+
+    points: np.ndarray
+    finite: int
+    voxels: int
+    convert_seconds: float
+    downsample_seconds: float
+
+
+def cloud_to_points(
+    msg: Any, dims: int = 3, max_points: int | None = None, seed: int = 0, voxel_size: float = 0.0
+) -> np.ndarray:
     """The finite points of a PointCloud2 as a C-contiguous (N, dims) float64 array.
 
     Organized clouds are flattened row by row; points with a NaN/Inf coordinate are dropped.
-    Above ``max_points`` (None or 0: no cap) a uniformly random subset in the original order
-    is kept, reproducible from ``seed``. Raises CloudError for malformed, empty and all-NaN
-    clouds.
+    With ``voxel_size`` > 0 only the first point of each occupied voxel is kept
+    (``frisicp_ros.stream.voxel``). Above ``max_points`` (None or 0: no cap) a uniformly random
+    subset in the original order is kept, reproducible from ``seed``. Raises CloudError for
+    malformed, empty and all-NaN clouds.
     """
+    return read_cloud(msg, dims, max_points, seed, voxel_size).points
+
+
+def read_cloud(
+    msg: Any, dims: int = 3, max_points: int | None = None, seed: int = 0, voxel_size: float = 0.0
+) -> CloudPoints:
+    """:func:`cloud_to_points` with its counts and timings.
+
+    Without a voxel grid the cap is drawn before anything is converted: only the finite mask is
+    computed over the whole cloud (on the zero-copy field views), and only the kept points are
+    copied into float64. The subset is the one ``frisicp_core.downsample`` draws from the finite
+    points with ``default_rng(seed)``, so the result does not depend on the order of the steps.
+    """
+    started = time.perf_counter()
     views = coordinate_views(msg, dims)
     total = int(msg.height) * int(msg.width)
     if total == 0:
         raise CloudError("empty cloud: width * height = 0")
-    points = np.empty((total, dims), dtype=np.float64)
-    # Garbage bytes (a wrong byte order flag) hold signalling NaNs: dropped below, not warned about.
+    columns = [view.reshape(-1) for view in views]  # views, unless rows are padded
+    finite_index = _finite_index(columns)
+    finite = total if finite_index is None else finite_index.size
+    if finite == 0:
+        raise CloudError(f"cloud has no finite points: all {total} points contain NaN/Inf")
+    rng = np.random.default_rng(seed)
+    if voxel_size > 0:
+        points = _gather(columns, finite_index)
+        converted = time.perf_counter()
+        points = voxel_filter(points, voxel_size)
+        voxels = points.shape[0]
+        if max_points:
+            points = downsample(points, int(max_points), rng)
+        return CloudPoints(
+            np.ascontiguousarray(points), finite, voxels, converted - started, time.perf_counter() - converted
+        )
+    chosen = finite_index
+    sampling = 0.0
+    if max_points and finite > max_points:
+        drawn = time.perf_counter()
+        # downsample()'s subset, np.sort(rng.choice(...)), without the sort: mark, then list in order
+        marked = np.zeros(finite, dtype=bool)
+        marked[rng.choice(finite, size=int(max_points), replace=False)] = True
+        chosen = np.flatnonzero(marked) if finite_index is None else finite_index[marked]
+        sampling = time.perf_counter() - drawn
+    points = _gather(columns, chosen)
+    return CloudPoints(points, finite, finite, time.perf_counter() - started - sampling, sampling)
+
+
+def _finite_index(columns: Sequence[np.ndarray]) -> np.ndarray | None:
+    """Indices of the points whose coordinates are all finite; None when every point is."""
+    mask: np.ndarray | None = None
+    for column in columns:
+        if column.dtype.kind != "f":
+            continue  # integer coordinates are always finite
+        with np.errstate(invalid="ignore"):  # signalling NaNs (garbage bytes) are not finite
+            column_finite = np.isfinite(column)
+        mask = column_finite if mask is None else np.logical_and(mask, column_finite, out=mask)
+    if mask is None or mask.all():
+        return None
+    return np.flatnonzero(mask)
+
+
+def _gather(columns: Sequence[np.ndarray], index: np.ndarray | None) -> np.ndarray:
+    """The rows ``index`` (None: all) of the coordinate columns as a C-contiguous float64 array."""
+    count = columns[0].shape[0] if index is None else index.shape[0]
+    points = np.empty((count, len(columns)), dtype=np.float64)
+    # Garbage bytes (a wrong byte order flag) hold signalling NaNs: dropped already, not warned about.
     with np.errstate(invalid="ignore"):
-        for column, view in enumerate(views):
-            points[:, column] = view.reshape(-1)  # the one copy: field dtype -> native float64
-    finite = np.isfinite(points).all(axis=1)
-    if not finite.all():
-        points = points[finite]
-        if points.shape[0] == 0:
-            raise CloudError(f"cloud has no finite points: all {total} points contain NaN/Inf")
-    if max_points:
-        points = downsample(points, int(max_points), np.random.default_rng(seed))
-    return np.ascontiguousarray(points)
+        for k, column in enumerate(columns):
+            points[:, k] = column if index is None else column[index]  # the one copy into float64
+    return points
 
 
 def aligned_cloud(

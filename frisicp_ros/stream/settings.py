@@ -28,6 +28,7 @@ from typing import Any
 
 from frisicp_core import RegistrationConfig
 from frisicp_core.kdtree import BACKENDS
+from frisicp_ros.stream.motion import MOTION_MODELS
 from frisicp_ros.stream.pairing import PAIRING_MODES
 
 Value = bool | int | float | str
@@ -243,12 +244,27 @@ OPTIONS: tuple[Option, ...] = (
     stream_option("dims", 3, "3: register x y z; 2: x y only (planar scans)", bounds=(2, 3)),
     stream_option(
         "max_points",
-        20000,
-        "cap on points per cloud (a random subset above it) to bound latency; 0 = no cap",
+        10000,
+        "cap on points per cloud (a random subset above it) to bound latency: 10000 registers a"
+        " pair in ~20-45 ms on one core, within a 10 Hz sensor's period; 0 = no cap",
         bounds=(0, 100_000_000),
     ),
     stream_option(
+        "voxel_size",
+        0.0,
+        "edge of a voxel grid (in the clouds' units, m for most sensors) applied to both clouds"
+        " before max_points: the first point of each occupied voxel is kept; 0 = off",
+        bounds=(0.0, 1e9),
+    ),
+    stream_option(
         "warm_start", True, "start each registration from the previous converged estimate (tracking)"
+    ),
+    stream_option(
+        "motion_model",
+        "constant_velocity",
+        "warm start of a moving sensor: constant_velocity (the last result moved on by the sensor's"
+        " recent velocity for the stamp gap; needs increasing stamps) or none (the last result)",
+        choices=MOTION_MODELS,
     ),
     stream_option("model_frame", "", "expected frame id of the model clouds; empty = accept any"),
     stream_option("data_frame", "", "expected frame id of the data clouds; empty = accept any"),
@@ -408,7 +424,9 @@ class PipelineSettings:
 
     dims: int
     max_points: int
+    voxel_size: float
     warm_start: bool
+    motion_model: str
     pairing: str
     sync_tolerance: float
     model_frame: str

@@ -168,6 +168,12 @@ def test_diagnostics_report_rates_latency_and_result(ros):
         "dropped pairs",
         "rejected data clouds",
         "last iterations",
+        "conversion / registration",
+        "down-sampling / registration",
+        "output / registration",
+        "registration CPU mean (ms)",
+        "callback delay p95 (ms)",  # the subscription gets the message info: DDS receipt time
+        "data transport p50 (ms)",
     ):
         assert key in values
 

@@ -6,6 +6,7 @@ import threading
 import time
 
 import numpy as np
+import pytest
 
 from frisicp_core import bumpy_surface
 from frisicp_ros.node.newest_slot import NewestWinsSlot
@@ -57,10 +58,21 @@ def test_status_levels_counters_and_latency():
     report = status.report(dropped_pairs=0, unpaired_data=0, has_model=False)
     assert report.level == WARN and "model" in report.message
     status.count_input("model")
-    status.count_input("data")
+    status.count_input("data", transport=0.02, callback=0.003)
     status.record(good, latency=0.25, publish_seconds=0.001)
     report = status.report(dropped_pairs=4, unpaired_data=1, has_model=True)
     assert report.level == OK
+    timings = good.timings
+    assert float(report.values["output mean (ms)"]) == 1.0
+    assert float(report.values["registration mean (ms)"]) == pytest.approx(
+        timings.register_seconds * 1e3, abs=0.1
+    )
+    overhead = (timings.convert_seconds + timings.downsample_seconds + 0.001) / timings.register_seconds
+    assert float(report.values["node overhead / registration"]) == pytest.approx(overhead, rel=1e-3)
+    assert (report.values["data transport p50 (ms)"], report.values["callback delay max (ms)"]) == (
+        "20.0",
+        "3.00",
+    )
     assert report.values["dropped pairs"] == "4" and report.values["registered pairs"] == "1"
     assert float(report.values["latency p50 (ms)"]) == 250.0
     assert float(report.values["data rate (Hz)"]) > 0 and report.values["last converged"] == "True"

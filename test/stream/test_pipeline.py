@@ -6,7 +6,9 @@ import numpy as np
 import pytest
 from support.data import axis_rotation
 
-from frisicp_core import Similarity, bumpy_surface, closed_contour
+from frisicp_core import Similarity, bumpy_surface, closed_contour, register
+from frisicp_core.points import rms_radius
+from frisicp_core.sampling import needs_spatial_order, spatial_order
 from frisicp_ros.stream.outputs import (
     OUTPUT_TOPICS,
     build_outputs,
@@ -15,7 +17,7 @@ from frisicp_ros.stream.outputs import (
 )
 from frisicp_ros.stream.pairing import Pairer
 from frisicp_ros.stream.pipeline import Registered, RegistrationPipeline, Rejected
-from frisicp_ros.stream.pointcloud2 import points_to_parts
+from frisicp_ros.stream.pointcloud2 import cloud_to_points, points_to_parts
 from frisicp_ros.stream.settings import PipelineSettings
 
 TRUTH = Similarity(1.8, axis_rotation(3, 25.0), np.array([0.4, -0.2, 1.0]))
@@ -104,6 +106,42 @@ def test_pipeline_recovers_the_similarity_and_reports_timings():
     )
     pipeline.reset()
     assert pipeline.previous is None
+
+
+def test_model_is_read_once_in_the_order_the_core_would_use():
+    model_msg, data_msg = scene(3000)
+    pipeline = RegistrationPipeline(PipelineSettings.create(max_points=2500))
+    first = pipeline.process(model_msg, data_msg)
+    assert isinstance(first, Registered)
+    cached = pipeline._model_cache
+    assert cached is not None and cached[0] is model_msg
+    points = cached[1]
+    assert not needs_spatial_order(points, rms_radius(points))  # the core will not sort it again
+    np.testing.assert_array_equal(points[spatial_order(points)], points)  # sorted: sorts to itself
+    second = pipeline.process(model_msg, data_msg)
+    assert isinstance(second, Registered) and pipeline._model_cache is cached  # not read again
+    assert second.timings.input_seconds < first.timings.input_seconds  # the data cloud only
+    assert first.timings.register_cpu_seconds > 0
+    # the same answer as the core sorting the model itself
+    settings = PipelineSettings.create(max_points=2500, warm_start=False)
+    raw = register(
+        cloud_to_points(data_msg, 3, 2500), cloud_to_points(model_msg, 3, 2500), settings.registration
+    )
+    fresh = RegistrationPipeline(settings).process(model_msg, data_msg)
+    assert isinstance(fresh, Registered)
+    np.testing.assert_array_equal(fresh.result.similarity.matrix(), raw.similarity.matrix())
+
+
+def test_changing_voxels_or_cap_forgets_the_model_and_the_warm_start():
+    model_msg, data_msg = scene(3000)
+    pipeline = RegistrationPipeline(PipelineSettings.create(max_points=2000))
+    pipeline.process(model_msg, data_msg)
+    assert pipeline.previous is not None
+    pipeline.update_settings(pipeline.settings.updated(voxel_size=0.15))
+    assert pipeline.previous is None and pipeline._model_cache is None
+    outcome = pipeline.process(model_msg, data_msg)
+    assert isinstance(outcome, Registered) and outcome.data_points < 2000  # the grid thinned it
+    assert outcome.result.similarity.scale == pytest.approx(TRUTH.scale, rel=1e-2)
 
 
 def test_pipeline_2d_mode_registers_planar_scans():

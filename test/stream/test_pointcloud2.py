@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from support.data import axis_rotation
 
-from frisicp_core import Similarity
+from frisicp_core import Similarity, downsample
 from frisicp_ros.stream.outputs import MessageTypes, rclpy_message_types, rosbags_message_types
 from frisicp_ros.stream.pointcloud2 import (
     DATATYPES,
@@ -21,6 +21,7 @@ from frisicp_ros.stream.pointcloud2 import (
     cloud_to_points,
     coordinate_views,
     points_to_parts,
+    read_cloud,
 )
 
 FLAVOURS = {"rclpy": rclpy_message_types, "rosbags": rosbags_message_types}
@@ -103,6 +104,17 @@ def test_nan_and_inf_points_are_dropped_and_cap_downsamples(types):
     assert capped.shape == (30, 3)
     np.testing.assert_array_equal(capped, cloud_to_points(msg, max_points=30, seed=4))  # reproducible
     assert {tuple(p) for p in capped} <= {tuple(p) for p in converted}
+
+
+def test_cap_is_drawn_before_conversion_as_downsample_would_draw_it(types):
+    points = grid_points(5000) + np.random.default_rng(3).uniform(size=(5000, 3))
+    points[::11, 1] = np.nan
+    msg = make(types, points_to_parts(points, datatype=FLOAT64))
+    finite = points[np.isfinite(points).all(axis=1)]
+    read = read_cloud(msg, max_points=700, seed=9)
+    np.testing.assert_array_equal(read.points, downsample(finite, 700, np.random.default_rng(9)))
+    assert read.points.flags.c_contiguous and read.points.dtype == np.float64
+    assert (read.finite, read.voxels) == (len(finite), len(finite))
 
 
 @pytest.mark.parametrize(
