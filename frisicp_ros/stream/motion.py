@@ -100,7 +100,9 @@ def velocity_of(motion: Similarity, seconds: float) -> Velocity | None:
     rotation = motion.rotation
     if motion.dim == 2:
         vector = np.array([np.arctan2(rotation[1, 0], rotation[0, 0])])
-    elif angle > 1e-12:
+    else:
+        # 2 sin(angle) times the axis; the angle from the trace is noisy near 0 (arccos), so an
+        # exactly symmetric matrix can report a tiny angle with no axis: no rotation then.
         axis = np.array(
             [
                 rotation[2, 1] - rotation[1, 2],
@@ -108,9 +110,8 @@ def velocity_of(motion: Similarity, seconds: float) -> Velocity | None:
                 rotation[1, 0] - rotation[0, 1],
             ]
         )
-        vector = axis / np.linalg.norm(axis) * angle
-    else:
-        vector = np.zeros(3)
+        norm = float(np.linalg.norm(axis))
+        vector = axis / norm * angle if norm > 1e-12 else np.zeros(3)
     return Velocity(vector / seconds, motion.translation / seconds)
 
 

@@ -92,6 +92,18 @@ def test_velocity_round_trip(dims):
     assert velocity_of(Similarity(1.0, np.eye(4), np.zeros(4)), 0.1) is None  # no axis above 3-D
 
 
+def test_a_rotation_too_small_to_have_an_axis_is_no_rotation():
+    # arccos of the trace reports ~1e-8 rad for a matrix a rounding away from the identity,
+    # whose antisymmetric part (the axis) is exactly zero: the velocity must stay finite.
+    nearly = np.eye(3) * (1 - 1e-16)
+    nearly[0, 0] = 1 - 3e-16
+    motion = Similarity(1.0, nearly, np.array([0.1, 0.0, 0.0]))
+    velocity = velocity_of(motion, 0.1)
+    assert velocity is not None
+    assert np.all(np.isfinite(velocity.rotation))
+    np.testing.assert_allclose(velocity.rotation, 0.0)
+
+
 def moving_clouds(k: int, types=None):
     types = types or rosbags_message_types()
     surface = bumpy_surface(3000, seed=1)
