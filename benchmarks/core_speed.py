@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 from pykdtree.kdtree import KDTree
 
+from frisicp_bench.methods import open3d_available, open3d_transformation
 from frisicp_core import RegistrationConfig, Similarity, axis_angle_rotation, register, rotation_angle
 from frisicp_core.io import read_points
 
@@ -79,25 +80,11 @@ def warm_start(truth: Similarity, rng: np.random.Generator) -> Similarity:
 
 
 def open3d_registration() -> Callable[[np.ndarray, np.ndarray, Similarity | None], Similarity] | None:
-    try:
-        import open3d as o3d
-    except (ImportError, OSError):  # OSError: the wheel's system library (libusb-1.0) is missing
+    if not open3d_available():
         return None
-    reg = o3d.pipelines.registration
 
     def run(data: np.ndarray, model: np.ndarray, start: Similarity | None) -> Similarity:
-        source = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(data))
-        target = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(model))
-        reach = float(np.linalg.norm(model.max(axis=0) - model.min(axis=0)))
-        result = reg.registration_icp(
-            source,
-            target,
-            reach,
-            np.eye(4) if start is None else start.matrix(),
-            reg.TransformationEstimationPointToPoint(with_scaling=True),
-            reg.ICPConvergenceCriteria(max_iteration=100),
-        )
-        return Similarity.from_matrix(np.asarray(result.transformation))
+        return Similarity.from_matrix(open3d_transformation(data, model, start))
 
     return run
 

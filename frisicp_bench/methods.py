@@ -60,16 +60,17 @@ def core_method(config: RegistrationConfig) -> Callable[[FloatArray, FloatArray]
     return run
 
 
-def open3d_scaled_icp(data: FloatArray, model: FloatArray) -> Outcome:
-    """Open3D point-to-point ICP with ``with_scaling=True`` from the identity, like the paper's baselines.
+def open3d_transformation(
+    data: FloatArray, model: FloatArray, start: Similarity | None = None, max_iterations: int = MAX_ITERATIONS
+) -> FloatArray:
+    """Open3D's point-to-point ICP with ``with_scaling=True``: the 4x4 matrix it returns.
 
     The correspondence distance limit is the model's bounding-box diagonal, so every pair counts
-    (plain ICP, as in frisicp_core's baselines). Time includes building Open3D's clouds.
+    (plain ICP, as in frisicp_core's baselines); ``start`` None is the identity, as in the paper.
     """
     import open3d as o3d
 
     reg = o3d.pipelines.registration
-    start = time.perf_counter()
     source = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(data))
     target = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(model))
     reach = float(np.linalg.norm(model.max(axis=0) - model.min(axis=0)))
@@ -77,13 +78,21 @@ def open3d_scaled_icp(data: FloatArray, model: FloatArray) -> Outcome:
         source,
         target,
         reach,
-        np.eye(4),
+        np.eye(4) if start is None else start.matrix(),
         reg.TransformationEstimationPointToPoint(with_scaling=True),
-        reg.ICPConvergenceCriteria(max_iteration=MAX_ITERATIONS),
+        reg.ICPConvergenceCriteria(max_iteration=max_iterations),
     )
+    return np.asarray(result.transformation)
+
+
+def open3d_scaled_icp(data: FloatArray, model: FloatArray) -> Outcome:
+    """:func:`open3d_transformation` from the identity, like the paper's baselines. Time includes
+    building Open3D's clouds."""
+    start = time.perf_counter()
+    transformation = open3d_transformation(data, model)
     seconds = time.perf_counter() - start
     try:
-        similarity = Similarity.from_matrix(np.asarray(result.transformation))
+        similarity = Similarity.from_matrix(transformation)
     except ValueError as err:  # a collapsed scale gives a singular matrix
         return Outcome(None, MAX_ITERATIONS, seconds, False, failure=f"open3d: {err}")
     # Open3D reports no iteration count; the cap is an upper bound, so it is not claimed.
