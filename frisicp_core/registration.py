@@ -70,11 +70,12 @@ _FINALISTS = 3
 _SIGNIFICANT = 3.0
 # First iteration of a level at which Anderson acceleration may propose steps. From a cold start
 # the first steps are large and the pairs change under them: extrapolating from a single step
-# misled it (bun045 -> bun000: 29 passes instead of 18). A close tracking start is already in
-# the linear regime where the remaining error is a slow slide along the surface, and waiting a
-# step there costs one (10k-point node pairs of a moving sensor: mean 3.5 -> 3.1 passes).
+# misled it (bun045 -> bun000: 29 passes instead of 18). The refinement levels of a tracking
+# start begin in the linear regime, where the remaining error is a slow slide along the
+# surface, and waiting a step there costs one (10k-point node pairs of a moving sensor: mean
+# 3.5 -> 3.0 passes).
 _ACCELERATE_FROM = 3
-_ACCELERATE_FROM_CLOSE_START = 2
+_ACCELERATE_FROM_TRACKING = 2
 # Points sampled to measure a set's spacing (median distance to the nearest other point).
 _SPACING_SAMPLE = 256
 
@@ -198,18 +199,6 @@ class _Pyramid:
                 targets = self._targets
             self._built[index] = _Level.build(*self._sets[index], self._bidirectional, backend, targets)
         return self._built[index]
-
-
-def _close_warm_start(solver: _Solver, level: _Level, sim: Similarity) -> _Pass | None:
-    """The pass of ``sim`` on ``level`` (the second, dense: exact neighbours, enough points for
-    a steady step) if the step it proposes is below ``coarse_relative_motion`` of the model's
-    size, else None. A start that close leaves the coarsest level nothing to do: iterating on
-    thinned sets would only move the estimate towards their bias and back."""
-    pose = PoseBatch.of([sim])
-    probe = solver.correspond(level, pose)
-    stepped, valid = solver.step(level, probe)
-    tolerance = solver.config.criteria.coarse_relative_motion * solver.model_radius
-    return probe if valid[0] and level.motion(pose, stepped)[0] <= tolerance else None
 
 
 def _final_on_dense_targets(
@@ -463,12 +452,10 @@ class _Solver:
         sim: Similarity,
         *,
         relative_motion: float,
-        first_pass: _Pass | None = None,
         accelerate_from: int = _ACCELERATE_FROM,
     ) -> tuple[Similarity, LevelReport, _Pass]:
         """Iterate correspond -> solve on one level until the similarity moves by less than
         ``relative_motion`` times the model's radius (or the merit stops falling).
-        ``first_pass``: the correspondences of ``sim`` on this level, if already computed;
         ``accelerate_from``: the first iteration that may take an Anderson step."""
         criteria = self.config.criteria
         tolerance = relative_motion * self.model_radius
@@ -476,7 +463,7 @@ class _Solver:
             AndersonAccelerator(sim, level.data_mean, self.model_radius) if self.config.acceleration else None
         )
         pose = PoseBatch.of([sim])
-        pairs = first_pass if first_pass is not None else self.correspond(level, pose)
+        pairs = self.correspond(level, pose)
         merit = float(pairs.merit[0])
         converged = False
         iterations = 0
@@ -596,18 +583,16 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
     if sum(len(family) for family in families) > 1:
         finalists = solver.screen(levels.screening_level(), families)
     reports: list[LevelReport] = []
-    sim, first, probe = finalists[0], 0, None
+    sim, first, accelerate_from = finalists[0], 0, _ACCELERATE_FROM
     if config.initial is not None and config.dense_targets and last > 0:
-        # Tracking: where the warm start is already finer than the coarsest level resolves,
-        # skip it; else converge on the thinned screening level, whose small trees answer
-        # far-off queries cheaply, before the dense levels.
-        probe = _close_warm_start(solver, levels[1], sim)
-        if probe is None:
-            sim, report, _ = solver.run_level(
-                0, levels.screening_level(), sim, relative_motion=_level_motion(config, 0, last)
-            )
-            reports.append(report)
-        first = 1
+        # Tracking: no hypotheses to screen, so the thinned screening level is skipped; the warm
+        # start converges on the first dense level (its coarsest points against the full sets:
+        # exact neighbours, so no thinning bias for the finer levels to undo, and one cheap pass
+        # when the start is already that close), then refines.
+        sim, report, pairs = solver.run_level(
+            0, levels[0], sim, relative_motion=_level_motion(config, 0, last)
+        )
+        reports, first, accelerate_from = [report], 1, _ACCELERATE_FROM_TRACKING
     elif len(finalists) > 1:
         sim, report, pairs = _final_on_dense_targets(
             solver, levels[0], finalists, _level_motion(config, 0, last)
@@ -619,8 +604,7 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
             levels[index],
             sim,
             relative_motion=_level_motion(config, index, last),
-            first_pass=probe if index == first else None,
-            accelerate_from=_ACCELERATE_FROM_CLOSE_START if probe is not None else _ACCELERATE_FROM,
+            accelerate_from=accelerate_from,
         )
         reports.append(report)
 

@@ -12,6 +12,7 @@ from frisicp_core import (
     Method,
     RegistrationConfig,
     Similarity,
+    axis_angle_rotation,
     bumpy_surface,
     closed_contour,
     register,
@@ -115,6 +116,29 @@ def test_initial_similarity_is_used_as_the_start():
     data, truth = scaled_copy(model, 1.3)
     result = register(data, model, RegistrationConfig(initial=truth))
     assert sum(result.iterations) <= 3 * len(result.levels)
+    assert errors(result.similarity, truth)[1] < 1e-9
+
+
+def test_tracking_from_the_answer_costs_one_pass_per_level_and_screens_nothing():
+    """A warm start skips the hypotheses and the thinned screening level: each level confirms
+    the start with one pass."""
+    model = SHAPES["3-D surface"]
+    data, truth = scaled_copy(model, 1.3)
+    result = register(data, model, RegistrationConfig(initial=truth))
+    assert result.iterations == (1,) * RegistrationConfig().levels
+    assert len(result.history) == RegistrationConfig().levels
+    assert result.warm_started
+
+
+def test_tracking_from_a_start_a_few_degrees_off_leaves_the_full_sets_one_or_two_passes():
+    """The coarse dense level catches up with the start (its neighbours are exact, so the finer
+    levels inherit no thinning bias); the full sets only confirm."""
+    model = SHAPES["3-D surface"]
+    data, truth = scaled_copy(model, 1.3)
+    turn = axis_angle_rotation([0.2, 1.0, 0.3], np.deg2rad(2.0))
+    start = Similarity(truth.scale * 1.02, turn @ truth.rotation, truth.translation)
+    result = register(data, model, RegistrationConfig(initial=start))
+    assert result.iterations[-1] <= 2
     assert errors(result.similarity, truth)[1] < 1e-9
 
 
