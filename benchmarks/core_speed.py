@@ -40,7 +40,6 @@ from pathlib import Path
 import numpy as np
 from pykdtree.kdtree import KDTree
 
-from frisicp_bench.methods import open3d_available, open3d_transformation
 from frisicp_core import RegistrationConfig, Similarity, axis_angle_rotation, register, rotation_angle
 from frisicp_core.io import read_points
 
@@ -79,7 +78,15 @@ def warm_start(truth: Similarity, rng: np.random.Generator) -> Similarity:
     return Similarity(truth.scale * 1.02, turn @ truth.rotation, truth.translation)
 
 
+def forward_similarity(scale: float) -> Similarity:
+    """The case at ``scale``: the data is the bunny scaled by it, turned 10 deg and shifted."""
+    return Similarity(scale, axis_angle_rotation([0.3, 1.0, 0.2], np.deg2rad(10.0)), [0.01, -0.02, 0.015])
+
+
 def open3d_registration() -> Callable[[np.ndarray, np.ndarray, Similarity | None], Similarity] | None:
+    # Imported here: speed_ab.py's workers import this module next to an older frisicp_core.
+    from frisicp_bench.methods import open3d_available, open3d_transformation
+
     if not open3d_available():
         return None
 
@@ -105,9 +112,7 @@ def measure(model: np.ndarray, repeats: int) -> list[Run]:
     header = f"{'s':>4} {'start':>5} {'method':>8} {'ms':>8} {'passes':>7} {'rot deg':>9} {'scale err':>9}"
     print(header, flush=True)
     for scale in SCALES:
-        forward = Similarity(
-            scale, axis_angle_rotation([0.3, 1.0, 0.2], np.deg2rad(10.0)), [0.01, -0.02, 0.015]
-        )
+        forward = forward_similarity(scale)
         data, truth = forward.apply(model), forward.inverse()
         aligned = truth.apply(data)
         starts = {"cold": None, "warm": warm_start(truth, rng)}

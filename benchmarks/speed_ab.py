@@ -40,17 +40,17 @@ WORKTREE = "worktree"
 def worker() -> int:
     """Serve timing requests on stdin, one JSON line each: {"scale": s} -> seconds and accuracy."""
     import numpy as np
-    from core_speed import BUNNY, rotation_10deg
+    from core_speed import BUNNY, forward_similarity
 
     import frisicp_core
-    from frisicp_core import Similarity, register, rotation_angle
+    from frisicp_core import register, rotation_angle
     from frisicp_core.io import read_points
 
     model = read_points(BUNNY)
     print(json.dumps({"core": str(Path(frisicp_core.__file__).parent)}), flush=True)
     for line in sys.stdin:
         scale = json.loads(line)["scale"]
-        forward = Similarity(scale, rotation_10deg(), np.array([0.01, -0.02, 0.015]))
+        forward = forward_similarity(scale)
         data = forward.apply(model)
         start = time.perf_counter()
         result = register(data, model)
