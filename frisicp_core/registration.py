@@ -50,7 +50,7 @@ from .overlap import Selection, select_pairs
 from .points import as_point_set, centroid, check_same_dimension, rms_radius
 from .poses import PoseBatch
 from .result import IterationRecord, LevelReport, RegistrationResult
-from .sampling import downsample, level_sizes, needs_spatial_order, spatial_order
+from .sampling import downsample, in_spatial_order, level_sizes
 from .similarity import FloatArray, Similarity
 from .verdict import judge, spread
 
@@ -557,10 +557,7 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
     model_set = as_point_set(model, "model", drop_nonfinite=config.drop_nonfinite)
     check_same_dimension(data_set, model_set)
     data_radius, model_radius = rms_radius(data_set), rms_radius(model_set)
-    if needs_spatial_order(data_set, data_radius):
-        data_set = data_set[spatial_order(data_set)]
-    if needs_spatial_order(model_set, model_radius):
-        model_set = model_set[spatial_order(model_set)]
+    data_set, model_set = in_spatial_order(data_set, data_radius), in_spatial_order(model_set, model_radius)
 
     rng = np.random.default_rng(config.seed)
     sizes = level_sizes(data_set.shape[0], model_set.shape[0], config.levels, config.coarsest_points)

@@ -58,6 +58,15 @@ def needs_spatial_order(points: FloatArray, radius: float) -> bool:
     return bool(np.median(steps) > _SCATTERED_STEP * radius)
 
 
+def in_spatial_order(points: FloatArray, radius: float) -> FloatArray:
+    """``points`` in Morton order (a new array) when :func:`needs_spatial_order`, else
+    ``points`` itself. Spatial order sorts to itself, so applying this twice changes nothing."""
+    if not needs_spatial_order(points, radius):
+        return points
+    ordered: FloatArray = points[spatial_order(points)]
+    return ordered
+
+
 def spatial_order(points: FloatArray) -> np.ndarray:
     """The permutation that sorts points along a Z-order (Morton) curve over their bounding box.
 

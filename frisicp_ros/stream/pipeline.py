@@ -32,7 +32,7 @@ import numpy as np
 
 from frisicp_core import RegistrationResult, Similarity, register
 from frisicp_core.points import rms_radius
-from frisicp_core.sampling import needs_spatial_order, spatial_order
+from frisicp_core.sampling import in_spatial_order
 from frisicp_ros.stream.motion import MotionTracker
 from frisicp_ros.stream.pointcloud2 import CloudError, CloudPoints, read_cloud
 from frisicp_ros.stream.settings import PipelineSettings, settings_from
@@ -224,8 +224,7 @@ class RegistrationPipeline:
         # it the order it would compute (a sorted set sorts to itself).
         started = time.perf_counter()
         with np.errstate(all="ignore"):  # absurd coordinates are the core's to reject, with a reason
-            if needs_spatial_order(points, rms_radius(points)):
-                points = np.ascontiguousarray(points[spatial_order(points)])
+            points = in_spatial_order(points, rms_radius(points))
         read = replace(read, downsample_seconds=read.downsample_seconds + time.perf_counter() - started)
         self._model_cache = (model_msg, points)
         return points, read

@@ -122,3 +122,13 @@ def test_spatial_order_is_a_permutation_that_puts_neighbours_side_by_side():
     step = np.linalg.norm(np.diff(ordered, axis=0), axis=1)
     assert np.median(step) < 0.1 * np.median(np.linalg.norm(np.diff(points, axis=0), axis=1))
     assert needs_spatial_order(points, 1.0) and not needs_spatial_order(ordered, 1.0)
+
+
+def test_in_spatial_order_sorts_a_scattered_cloud_once_and_leaves_an_ordered_one_alone():
+    from frisicp_core import bumpy_surface
+    from frisicp_core.sampling import in_spatial_order, spatial_order
+
+    points = bumpy_surface(5000)  # random storage order
+    ordered = in_spatial_order(points, 1.0)
+    np.testing.assert_array_equal(ordered, points[spatial_order(points)])
+    assert in_spatial_order(ordered, 1.0) is ordered  # already in order: the same array
