@@ -92,26 +92,24 @@ def _pykdtree(dtype: type) -> Candidate:
     return Candidate(name, build, query, exact=dtype is np.float64, note=note)
 
 
+def _scipy_query(tree: Tree, queries: np.ndarray, threads: int) -> QueryResult:
+    """scipy's cKDTree and KDTree answer alike: squared distances, indices."""
+    d, idx = tree.query(queries, k=1, workers=threads)
+    return d * d, idx
+
+
 def _ckdtree() -> Candidate:
     def build(points: np.ndarray, threads: int) -> Tree:
         return cKDTree(points, leafsize=16, balanced_tree=False, compact_nodes=False)
 
-    def query(tree: Tree, queries: np.ndarray, threads: int) -> QueryResult:
-        d, idx = tree.query(queries, k=1, workers=threads)
-        return d * d, idx
-
-    return Candidate("scipy-cKDTree", build, query, note="as frisicp_core builds it; workers=threads")
+    return Candidate("scipy-cKDTree", build, _scipy_query, note="as frisicp_core builds it; workers=threads")
 
 
 def _scipy_kdtree() -> Candidate:
     def build(points: np.ndarray, threads: int) -> Tree:
         return KDTree(points)  # scipy defaults: balanced, compact nodes, leafsize 10
 
-    def query(tree: Tree, queries: np.ndarray, threads: int) -> QueryResult:
-        d, idx = tree.query(queries, k=1, workers=threads)
-        return d * d, idx
-
-    return Candidate("scipy-KDTree", build, query, note="scipy.spatial.KDTree, default build options")
+    return Candidate("scipy-KDTree", build, _scipy_query, note="scipy.spatial.KDTree, default build options")
 
 
 def _small_gicp() -> Candidate:
