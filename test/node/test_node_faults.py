@@ -6,10 +6,9 @@ Domain 135 (unique to this module), loopback discovery only.
 
 from __future__ import annotations
 
-import dataclasses
-
 import numpy as np
 import pytest
+from support.data import with_absurd_scale
 from support.ros import TRUTH, NodeAndProbe, ros_environment, scene_messages, transform_similarity, wait_until
 
 DOMAIN = 135
@@ -171,17 +170,7 @@ def test_diagnostics_never_say_ok_for_an_absurd_scale(running):
     assert_truth(running.register(data))
     outcome = running.node._status._last_registered
     assert outcome is not None
-    from frisicp_core import Similarity
-
-    absurd = dataclasses.replace(
-        outcome,
-        result=dataclasses.replace(
-            outcome.result,
-            similarity=Similarity(1.5e40, np.eye(3), np.zeros(3)),
-            reliable=False,
-            reason="scale 1.5e+40 is 1e40x the clouds' size ratio",
-        ),
-    )
+    absurd = with_absurd_scale(outcome)
     running.node.publish_outcome(absurd, data)
     report = running.report()
     assert report.level != OK and "1.5e+40" in report.message

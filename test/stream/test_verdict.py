@@ -11,6 +11,7 @@ import dataclasses
 
 import numpy as np
 import pytest
+from support.data import with_absurd_scale
 
 from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface, rotation_angle
 from frisicp_ros.stream import pipeline as pipeline_module
@@ -92,15 +93,7 @@ def test_a_result_carries_its_verdict_and_only_a_reliable_one_has_outputs():
     assert isinstance(outcome, Registered) and outcome.reliable and outcome.reason == ""
     assert 0 < outcome.result.overlap_forward <= 1 and 0 < outcome.result.overlap_backward <= 1
     assert set(build_outputs(outcome, GOOD, TYPES, tuple(OUTPUT_TOPICS))) == set(OUTPUT_TOPICS)
-    implausible = dataclasses.replace(
-        outcome,
-        result=dataclasses.replace(
-            outcome.result,
-            similarity=Similarity(1.5e40, np.eye(3), np.zeros(3)),
-            reliable=False,
-            reason="scale 1.5e+40 is far from the clouds' size ratio",
-        ),
-    )
+    implausible = with_absurd_scale(outcome)
     with pytest.raises(ValueError, match="unreliable result has no outputs"):
         build_outputs(implausible, GOOD, TYPES, tuple(OUTPUT_TOPICS))
 

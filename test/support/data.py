@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
 
-from frisicp_core import axis_angle_rotation
+from frisicp_core import Similarity, axis_angle_rotation
 
 # ../shared/data beside the repository, or FRISICP_DATA (the variable frisicp bench reads too).
 SHARED_DATA = Path(os.environ.get("FRISICP_DATA") or Path(__file__).resolve().parents[3] / "shared" / "data")
@@ -38,3 +40,18 @@ def axis_rotation(dim: int, degrees: float, axis: tuple[float, ...] = (0.3, 1.0,
     if dim == 2:
         return np.array([[c, -s], [s, c]])
     return axis_angle_rotation(axis, angle)
+
+
+def with_absurd_scale(outcome: Any) -> Any:
+    """A registered pair's outcome as the verdict leaves a scale of 1.5e40: unreliable, with a
+    reason naming the scale (what a garbage cloud produced before the verdict existed)."""
+    dim = outcome.result.similarity.dim
+    return dataclasses.replace(
+        outcome,
+        result=dataclasses.replace(
+            outcome.result,
+            similarity=Similarity(1.5e40, np.eye(dim), np.zeros(dim)),
+            reliable=False,
+            reason="scale 1.5e+40 is far from the clouds' size ratio",
+        ),
+    )
