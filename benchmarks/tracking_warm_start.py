@@ -10,7 +10,8 @@ p95, max), the iterations per level (most common patterns) and the start's error
 result, for a sensor at rest and a moving one. It shows where the node's time goes once the
 node's own costs are gone: a start a few standard errors away from the scan's own optimum makes
 the finest level iterate ~5 times (each a full-resolution bidirectional KD-tree pass) instead of
-once.
+once. KD-tree passes: query points per full bidirectional pass (benchmarks/query_count.py), the
+deterministic part of the cost; the bunny cases of `make bench` are counted the same way.
 """
 
 from __future__ import annotations
@@ -28,9 +29,12 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).parent))
+from core_speed import BUNNY, SCALES, forward_similarity, warm_start
 from node_latency import NOISE, moving_truth, static_truth
+from query_count import counting_queries
 
 from frisicp_core import RegistrationConfig, bumpy_surface, downsample, register
+from frisicp_core.io import read_points
 from frisicp_ros.stream.motion import MotionTracker
 
 
@@ -55,7 +59,7 @@ def main() -> None:
         ]
         for start in ("truth", "previous result", "constant velocity"):
             tracker = MotionTracker()
-            cpu, patterns, start_errors = [], Counter(), []
+            cpu, passes, patterns, start_errors = [], [], Counter(), []
             for k, (truth, scan) in enumerate(zip(truths, scans, strict=True)):
                 stamp = k * 100_000_000
                 if start == "truth":
@@ -64,23 +68,52 @@ def main() -> None:
                     initial = tracker.last
                 else:
                     initial = tracker.predict(stamp)
-                began = time.thread_time()
-                result = register(scan, model, replace(RegistrationConfig(), initial=initial))
-                spent = time.thread_time() - began
+                with counting_queries() as queried:
+                    began = time.thread_time()
+                    result = register(scan, model, replace(RegistrationConfig(), initial=initial))
+                    spent = time.thread_time() - began
+                    queried_points = queried()
                 tracker.update(stamp, result.similarity)
                 if k >= 3:
                     cpu.append(spent * 1e3)
+                    passes.append(queried_points / (len(scan) + len(model)))
                     patterns[result.iterations] += 1
                     gap = initial.inverse() @ result.similarity  # type: ignore[union-attr]
                     start_errors.append((np.rad2deg(gap.rotation_angle()), np.linalg.norm(gap.translation)))
             errors = np.array(start_errors)
             print(
                 f"{motion:6s} start={start:17s} cpu ms median {np.median(cpu):5.1f} p95"
-                f" {np.percentile(cpu, 95):5.1f} max {max(cpu):5.1f} | start error median"
+                f" {np.percentile(cpu, 95):5.1f} max {max(cpu):5.1f} | KD-tree passes mean"
+                f" {np.mean(passes):.2f} p95 {np.percentile(passes, 95):.2f} | start error median"
                 f" {np.median(errors[:, 0]):.3f} deg {np.median(errors[:, 1]) * 1e3:.1f} mm |"
                 f" iterations {patterns.most_common(4)}",
                 flush=True,
             )
+    bunny_passes()
+
+
+def bunny_passes() -> None:
+    """make bench's bunny cases (benchmarks/core_speed.py), cold and warm 2 deg / 2 % off, in
+    KD-tree query points per full pass: the part of a registration's cost that is not fixed."""
+    if not BUNNY.exists():
+        print(f"bunny: skipped, {BUNNY} is absent")
+        return
+    model = read_points(BUNNY)
+    rng = np.random.default_rng(0)
+    for start in ("cold", "warm"):
+        passes, patterns = [], Counter()
+        for scale in SCALES:
+            forward = forward_similarity(scale)
+            initial = None if start == "cold" else warm_start(forward.inverse(), rng)
+            with counting_queries() as queried:
+                result = register(forward.apply(model), model, RegistrationConfig(initial=initial))
+                passes.append(queried() / (2 * len(model)))
+            patterns[result.iterations] += 1
+        print(
+            f"bunny  {start}: KD-tree passes median {np.median(passes):.2f} max {max(passes):.2f}"
+            f" | iterations {patterns.most_common(6)}",
+            flush=True,
+        )
 
 
 if __name__ == "__main__":
