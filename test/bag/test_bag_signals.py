@@ -116,12 +116,15 @@ def test_signals_stop_cleanly_keep_every_result_and_finish_the_result_bag(
 def test_a_second_ctrl_c_abandons_a_long_registration_at_once(tmp_path):
     """The first Ctrl-C finishes the pair in hand; the second does not wait for it."""
     model = bumpy_surface(150_000, seed=1)
-    noisy = data_cloud(model, truth_for(0), 0) + np.random.default_rng(0).normal(0, 0.01, (120_000, 3))
     records = [CloudRecord(MODEL_TOPIC, 10**9, 10**9, MODEL_FRAME, model)]
-    records.append(CloudRecord(DATA_TOPIC, 2 * 10**9, 2 * 10**9, DATA_FRAME, noisy))
+    # Several slow pairs, so that one is in hand when the signals come however fast the core is
+    # (a single pair once finished before the first Ctrl-C).
+    for k in range(6):
+        noisy = data_cloud(model, truth_for(k), k) + np.random.default_rng(k).normal(0, 0.01, (120_000, 3))
+        records.append(CloudRecord(DATA_TOPIC, (2 + k) * 10**9, (2 + k) * 10**9, DATA_FRAME, noisy))
     bag = write_rosbag2(tmp_path / "slow", records, "mcap")
     command = [str(FRISICP), "bag", str(bag), *TOPICS]
-    # Full clouds with noise and no convergence threshold: one registration of many seconds.
+    # Full clouds with noise and no convergence threshold: registrations of seconds each.
     command += ["--max-points", "0", "--relative-motion", "0", "--relative-rmse", "0", "--no-noise-floor"]
     command += ["--no-progress", "--out", str(tmp_path / "r.jsonl")]
     process = subprocess.Popen(command, stderr=subprocess.PIPE, text=True, start_new_session=True)
