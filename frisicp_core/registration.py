@@ -36,6 +36,7 @@ are built once per level, never per iteration.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -56,8 +57,8 @@ from .verdict import judge, spread
 
 # Most passes a hypothesis gets on the screening level to settle into its local minimum.
 _SCREENING_PASSES = 60
-# Screening keeps the best few of each family of hypotheses after a few passes, then drops one
-# whose merit is this many times the best one's (see _Solver.screen).
+# Screening keeps the better half of each family of hypotheses after one pass, the best few after
+# a few passes, then drops one whose merit is this many times the best one's (see _Solver.screen).
 _SCREEN_PRUNE_FROM = 2
 _KEEP_PER_FAMILY = 3
 _SCREEN_PRUNE_RATIO = 2.0
@@ -234,25 +235,34 @@ def _level_motion(config: RegistrationConfig, index: int, last: int) -> float:
 
 def _finalists(minima: list[tuple[float, Similarity]], level: _Level, tolerance: float) -> list[Similarity]:
     """The distinct poses among ``minima`` within :data:`_FINALIST_MARGIN` of the best merit,
-    best first, at most :data:`_FINALISTS` (poses within three tolerances are one minimum)."""
+    best first, at most :data:`_FINALISTS`. Poses within three tolerances, or within one point
+    spacing of the thinned level, are one minimum: hypotheses that settle into one basin stop a
+    little apart on the thinned sets, and two finalists from one basin would crowd out another
+    (a synthetic scan in its map: the right basin came fourth behind two copies of a wrong one)."""
     chosen: list[tuple[float, Similarity]] = []
     for value, pose in sorted(minima, key=lambda item: item[0]):
         if chosen and value > (1.0 + _FINALIST_MARGIN) * chosen[0][0]:
             break
         distances = [level.motion(PoseBatch.of([pose]), PoseBatch.of([other]))[0] for _, other in chosen]
-        if all(d > _SIGNIFICANT * tolerance for d in distances):
+        if all(d > max(_SIGNIFICANT * tolerance, level.model_spacing) for d in distances):
             chosen.append((value, pose))
         if len(chosen) == _FINALISTS:
             break
     return [pose for _, pose in chosen]
 
 
-def _best_of_each(family: np.ndarray, merit: FloatArray, keep: int) -> np.ndarray:
-    """Mask of the ``keep`` lowest merits within each family."""
+def _better_half(size: int) -> int:
+    """How many of a family of ``size`` survive the first pass: half, at least _KEEP_PER_FAMILY."""
+    return max(_KEEP_PER_FAMILY, (size + 1) // 2)
+
+
+def _best_of_each(family: np.ndarray, merit: FloatArray, keep: int | Callable[[int], int]) -> np.ndarray:
+    """Mask of the ``keep`` lowest merits within each family (``keep(family size)`` if callable)."""
     chosen = np.zeros(family.shape[0], dtype=bool)
     for member in np.unique(family):
         indices = np.flatnonzero(family == member)
-        chosen[indices[np.argsort(merit[indices])[:keep]]] = True
+        count = keep(indices.size) if callable(keep) else keep
+        chosen[indices[np.argsort(merit[indices])[:count]]] = True
     return chosen
 
 
@@ -366,9 +376,11 @@ class _Solver:
         :data:`_FINALIST_MARGIN` of the best is returned (at most :data:`_FINALISTS`), for the
         caller to compare on dense targets. To keep the batch small:
 
-        - after :data:`_SCREEN_PRUNE_FROM` passes only the :data:`_KEEP_PER_FAMILY` best of each
-          family stay (members differ in one parameter, e.g. the scale of the data in place;
-          their early merits rank them);
+        - after the first pass (the merits of the starting poses) the better half of each family
+          stays, at least :data:`_KEEP_PER_FAMILY`; after :data:`_SCREEN_PRUNE_FROM` passes only
+          the :data:`_KEEP_PER_FAMILY` best (members differ in one parameter, e.g. the scale of
+          the data in place; their early merits rank them, but the starting poses' merits alone
+          dropped the right scale of a map onto its scan);
         - from then on, one whose merit is :data:`_SCREEN_PRUNE_RATIO` times the best's leaves
           (on 248 recorded screenings of the bunny cases the eventual winner was within 4 % of
           the best from the second pass on; on synthetic caps within 25 %);
@@ -400,6 +412,8 @@ class _Solver:
                 near = level.motion(PoseBatch.of([pose] * len(stepped)), stepped)
                 alive &= (near > noise) | (merit < value)
             best = min([float(merit.min())] + [value for value, _ in minima])
+            if iteration == 1:
+                alive &= _best_of_each(family, merit, _better_half)
             if iteration == _SCREEN_PRUNE_FROM:
                 alive &= _best_of_each(family, merit, _KEEP_PER_FAMILY)
             if iteration >= _SCREEN_PRUNE_FROM:
