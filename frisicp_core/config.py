@@ -32,8 +32,9 @@ class Initialization(str, Enum):
     MOMENTS: centroids aligned, s = ratio of RMS radii, R = I.
     PRINCIPAL_AXES: MOMENTS plus one hypothesis per proper principal-axes alignment.
     SEARCH: PRINCIPAL_AXES plus the data left in place (R = I, its centroid fixed) at scales
-    around the RMS-radius ratio: the right start when the frames are roughly aligned but the
-    clouds overlap only partly (a scan in a map), where centroids and radii mislead.
+    around the RMS-radius ratio, and turned 30 degrees either way in each coordinate plane: the
+    right start when the frames are roughly aligned but the clouds overlap only partly (a scan
+    in a map), where centroids and radii mislead.
     With several hypotheses, all are iterated together on the coarsest level and the one with
     the lowest error is kept (see ``frisicp_core.hypotheses``).
     """

@@ -15,9 +15,9 @@ one whose short run on the coarsest level reaches the lowest error. The candidat
   that are roughly aligned (a scan in a map, two sensors, the usual robotics case) are not.
 - *turned in place* (``search``): the data in place at the radius ratio, turned by
   :data:`IN_PLACE_TURN` either way in each coordinate plane (6 poses in 3-D, 2 in 2-D). "Roughly
-  aligned" frames are often tens of degrees apart, and a partial scan's basin is narrow: from R = I
-  the bunny scans of ``frisicp bench`` (turned up to 30 degrees) settled 15-35 degrees off with
-  some random thinnings. A start turned part of the way brings those into reach.
+  aligned" frames are often tens of degrees apart, and a partial scan's basin is narrow: from the
+  starts above, a bunny scan of ``frisicp bench`` (turned up to 30 degrees) ended 14-25 degrees
+  off with two of six random thinnings. A start turned part of the way brings it into reach.
 """
 
 from __future__ import annotations
@@ -34,8 +34,8 @@ from .similarity import FloatArray, Similarity
 # has an RMS radius between about a quarter and all of the whole's, so the ratio misses the true
 # scale by up to a factor of a few in either direction (scan onto map, map onto scan).
 IN_PLACE_OCTAVES = tuple(k / 2 for k in range(-6, 7))
-# Turn of the turned in-place hypotheses, in radians: with R = I's basin they cover turns of about
-# twice this, the range over which frames called "roughly aligned" differ.
+# Turn of the turned in-place hypotheses, in radians (see benchmarks/turned_frames.py for the
+# turns they reach).
 IN_PLACE_TURN = np.deg2rad(30.0)
 
 

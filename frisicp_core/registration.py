@@ -57,11 +57,19 @@ from .verdict import judge, spread
 
 # Most passes a hypothesis gets on the screening level to settle into its local minimum.
 _SCREENING_PASSES = 60
-# Screening keeps the better half of each family of hypotheses after one pass, the best few after
-# a few passes, then drops one whose merit is this many times the best one's (see _Solver.screen).
+# Screening keeps the better half of each family of starting poses, ranked on every
+# _ROUGH_EVERY-th point of its level, the best few after a few passes, then drops one whose merit
+# is this many times the best one's (see _Solver.screen).
+_ROUGH_EVERY = 4
+_ROUGH_POINTS = 100
 _SCREEN_PRUNE_FROM = 2
 _KEEP_PER_FAMILY = 3
 _SCREEN_PRUNE_RATIO = 2.0
+# A hypothesis outside the finalists' margin whose merit, falling as fast as in its last pass,
+# would not reach the margin within this many passes leaves: ICP's merit falls ever more slowly,
+# and a sequence converging linearly at rate rho still has gain * rho / (1 - rho) to go, less than
+# this many gains for rho < 10/11 (see _Solver.screen).
+_SCREEN_HORIZON = 10.0
 # Distinct minima whose screening merits are within this margin of the best are compared again on
 # dense targets (at most this many): the thinned level can rank nearby basins wrongly.
 _FINALIST_MARGIN = 0.25
@@ -376,14 +384,20 @@ class _Solver:
         :data:`_FINALIST_MARGIN` of the best is returned (at most :data:`_FINALISTS`), for the
         caller to compare on dense targets. To keep the batch small:
 
-        - after the first pass (the merits of the starting poses) the better half of each family
-          stays, at least :data:`_KEEP_PER_FAMILY`; after :data:`_SCREEN_PRUNE_FROM` passes only
+        - before the first pass, the better half of each family stays (at least
+          :data:`_KEEP_PER_FAMILY`), ranked by the merits of the starting poses on a quarter of
+          the level's points (:meth:`rough_merits`: the first pass over every start was most of
+          a full-overlap cold start's screening); after :data:`_SCREEN_PRUNE_FROM` passes only
           the :data:`_KEEP_PER_FAMILY` best (members differ in one parameter, e.g. the scale of
-          the data in place; their early merits rank them, but the starting poses' merits alone
-          dropped the right scale of a map onto its scan);
+          the data in place; their early merits rank them, but keeping three on the starting
+          poses' merits alone dropped the right scale of a map onto its scan);
         - from then on, one whose merit is :data:`_SCREEN_PRUNE_RATIO` times the best's leaves
           (on 248 recorded screenings of the bunny cases the eventual winner was within 4 % of
           the best from the second pass on; on synthetic caps within 25 %);
+        - from the pass after, one outside :data:`_FINALIST_MARGIN` of the best that falls too
+          slowly to get inside it within :data:`_SCREEN_HORIZON` passes leaves (on a scan in its
+          map, the principal-axes starts crawled at 1.7-2x the best merit for 30 passes and
+          made up most of the screening's cost);
         - one within three standard errors of the pose of a better one, moving or settled,
           leaves (the same basin);
         - one that settles (its step moves the data by less than ``coarse_relative_motion``)
@@ -391,6 +405,9 @@ class _Solver:
         """
         hypotheses = [sim for family in families for sim in family]
         family = np.concatenate([np.full(len(f), k) for k, f in enumerate(families)])
+        chosen = _best_of_each(family, self.rough_merits(level, hypotheses), _better_half)
+        hypotheses = [sim for sim, keep in zip(hypotheses, chosen, strict=True) if keep]
+        family = family[chosen]
         poses = PoseBatch.of(hypotheses)
         pairs = self.correspond(level, poses)
         tolerance = self.config.criteria.coarse_relative_motion * self.model_radius
@@ -400,6 +417,7 @@ class _Solver:
             if self.config.acceleration
             else []
         )
+        previous = np.full(len(poses), np.inf)  # each hypothesis's merit one pass earlier
         for iteration in range(1, _SCREENING_PASSES + 1):
             merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
             stepped, valid = self.step(level, pairs)
@@ -412,16 +430,18 @@ class _Solver:
                 near = level.motion(PoseBatch.of([pose] * len(stepped)), stepped)
                 alive &= (near > noise) | (merit < value)
             best = min([float(merit.min())] + [value for value, _ in minima])
-            if iteration == 1:
-                alive &= _best_of_each(family, merit, _better_half)
             if iteration == _SCREEN_PRUNE_FROM:
                 alive &= _best_of_each(family, merit, _KEEP_PER_FAMILY)
             if iteration >= _SCREEN_PRUNE_FROM:
                 alive &= merit <= _SCREEN_PRUNE_RATIO * best
+            if iteration > _SCREEN_PRUNE_FROM:  # too slow to become a finalist
+                finalist = (1.0 + _FINALIST_MARGIN) * best
+                alive &= (merit <= finalist) | (merit - finalist < _SCREEN_HORIZON * (previous - merit))
             if not alive.any():
                 return _finalists(minima, level, tolerance)
             kept = np.flatnonzero(alive)
             family = family[alive]
+            previous = merit[kept]
             accelerators = [accelerators[k] for k in kept] if accelerators else []
             poses, pairs = self._screening_step(
                 level, poses.take(kept), stepped.take(kept), merit[kept], accelerators, iteration
@@ -429,6 +449,17 @@ class _Solver:
         merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
         minima += [(float(merit[k]), poses[k]) for k in range(len(poses)) if merit[k] < np.inf]
         return _finalists(minima, level, tolerance)
+
+    def rough_merits(self, level: _Level, hypotheses: list[Similarity]) -> FloatArray:
+        """Merit of each starting pose on every :data:`_ROUGH_EVERY`-th point of ``level`` (fewer
+        skipped on small sets, so each keeps :data:`_ROUGH_POINTS` points)."""
+        smaller = min(level.data.shape[0], level.model.shape[0])
+        every = max(1, min(_ROUGH_EVERY, smaller // _ROUGH_POINTS))
+        rough = _Level.build(
+            level.data[::every], level.model[::every], self.bidirectional, self.config.backend
+        )
+        merit = self.correspond(rough, PoseBatch.of(hypotheses)).merit
+        return np.where(np.isfinite(merit), merit, np.inf)
 
     def _screening_step(
         self,
