@@ -260,7 +260,7 @@ def _finalists(minima: list[tuple[float, Similarity]], level: _Level, tolerance:
 
 
 def _better_half(size: int) -> int:
-    """How many of a family of ``size`` survive the first pass: half, at least _KEEP_PER_FAMILY."""
+    """How many of a family of ``size`` survive the rough ranking: half, at least _KEEP_PER_FAMILY."""
     return max(_KEEP_PER_FAMILY, (size + 1) // 2)
 
 
@@ -452,7 +452,8 @@ class _Solver:
 
     def rough_merits(self, level: _Level, hypotheses: list[Similarity]) -> FloatArray:
         """Merit of each starting pose on every :data:`_ROUGH_EVERY`-th point of ``level`` (fewer
-        skipped on small sets, so each keeps :data:`_ROUGH_POINTS` points)."""
+        skipped on small sets, so each keeps at least :data:`_ROUGH_POINTS` points). The level is a
+        random subset of each set, in storage order, so every k-th of its points is one too."""
         smaller = min(level.data.shape[0], level.model.shape[0])
         every = max(1, min(_ROUGH_EVERY, smaller // _ROUGH_POINTS))
         rough = _Level.build(
