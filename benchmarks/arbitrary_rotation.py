@@ -52,7 +52,7 @@ def perturbation(family: Family, scale: float, seed: int) -> Similarity:
     direction = rng.normal(size=family.dim)
     shift = TRANSLATION_FRACTION * family.size * direction / np.linalg.norm(direction)
     centre = family.model.mean(axis=0)
-    return Similarity(scale, rotation, centre - scale * rotation @ centre + shift)
+    return Similarity.about(centre, scale, rotation, shift)
 
 
 def main() -> int:

@@ -58,7 +58,7 @@ def perturbation(data: np.ndarray, model: np.ndarray, scale: float, rng: np.rand
     direction = rng.normal(size=2)
     shift = SHIFT_FRACTION * model_size(model) * direction / np.linalg.norm(direction)
     centre = data.mean(axis=0)
-    return Similarity(scale, rotation, centre - scale * rotation @ centre + shift)
+    return Similarity.about(centre, scale, rotation, shift)
 
 
 def main() -> int:

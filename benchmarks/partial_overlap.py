@@ -250,7 +250,7 @@ def make_case(data_dir: Path, pair: Pair, scale: float, seed: int) -> Case:
     direction = rng.normal(size=3)
     centre = data.mean(axis=0)
     shift = SHIFT_FRACTION * size * direction / np.linalg.norm(direction)
-    perturbation = Similarity(scale, rotation, centre - scale * rotation @ centre + shift)
+    perturbation = Similarity.about(centre, scale, rotation, shift)
     return Case(pair, scale, perturbation.apply(data), model, perturbation.inverse(), size)
 
 

@@ -56,7 +56,7 @@ def main() -> int:
                 for axis_index in range(AXES):
                     rng = np.random.default_rng([args.seed, zlib.crc32(family.name.encode()), axis_index])
                     rotation = axis_angle_rotation(rng.normal(size=3), np.radians(angle))
-                    g = Similarity(scale, rotation, centre - scale * rotation @ centre)
+                    g = Similarity.about(centre, scale, rotation)
                     data = g.apply(family.data)
                     result = register(data, family.model, RegistrationConfig())
                     errors = pose_errors(result.similarity, g.inverse(), data, family.size)

@@ -85,7 +85,7 @@ def perturbation(family: Family, scale: float, rng: np.random.Generator) -> Simi
     direction = rng.normal(size=dim)
     shift = TRANSLATION_FRACTION * family.size * direction / np.linalg.norm(direction)
     centre = family.model.mean(axis=0)
-    return Similarity(scale, rotation, centre - scale * rotation @ centre + shift)
+    return Similarity.about(centre, scale, rotation, shift)
 
 
 def make_cases(family: Family, scales: tuple[float, ...], seed: int) -> list[Case]:

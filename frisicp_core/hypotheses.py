@@ -81,10 +81,8 @@ def initial_hypotheses(
             families.append([centred(rotation) for rotation in _principal_axes_rotations(data, model)])
         if config.initialization is Initialization.SEARCH and config.method is not Method.ICP:
             scales = [ratio * 2.0**k for k in IN_PLACE_OCTAVES]
-            families.append([Similarity(s, np.eye(dim), mu_d - s * mu_d) for s in scales])
-            families.append(
-                [Similarity(ratio, r, mu_d - ratio * r @ mu_d) for r in plane_rotations(dim, IN_PLACE_TURN)]
-            )
+            families.append([Similarity.about(mu_d, s, np.eye(dim)) for s in scales])
+            families.append([Similarity.about(mu_d, ratio, r) for r in plane_rotations(dim, IN_PLACE_TURN)])
     if scale_bounds is not None:
         # Du's method must start inside its bounds: from outside, the first clipped step can raise
         # the error, which the loop would take for convergence after one iteration.

@@ -65,6 +65,17 @@ class Similarity:
     def identity(cls, dim: int) -> Similarity:
         return cls(1.0, np.eye(dim), np.zeros(dim))
 
+    @classmethod
+    def about(
+        cls, centre: ArrayLike, scale: float, rotation: ArrayLike, shift: ArrayLike | None = None
+    ) -> Similarity:
+        """Scale and turn about the point ``centre``, then move by ``shift``:
+        x -> s R (x - c) + c + shift, i.e. t = c - s R c + shift."""
+        c = np.asarray(centre, dtype=np.float64)
+        rot = np.asarray(rotation, dtype=np.float64)
+        translation = c - scale * rot @ c
+        return cls(scale, rot, translation if shift is None else translation + np.asarray(shift))
+
     def apply(self, points: ArrayLike) -> FloatArray:
         """Map an (N, m) array (or one m-vector) through the transform."""
         pts = np.asarray(points, dtype=np.float64)

@@ -45,7 +45,7 @@ def perturbed(data: np.ndarray, model: np.ndarray, scale: float, seed: int) -> t
     rotation = axis_angle_rotation(rng.normal(size=3), np.deg2rad(10.0))
     shift = rng.normal(size=3)
     shift *= 0.05 * np.linalg.norm(model.max(axis=0) - model.min(axis=0)) / np.linalg.norm(shift)
-    move = Similarity(scale, rotation, centre - scale * rotation @ centre + shift)
+    move = Similarity.about(centre, scale, rotation, shift)
     return move.apply(data), move.inverse()
 
 

@@ -22,6 +22,18 @@ def test_compose_inverse_and_matrix_agree(dim):
     np.testing.assert_allclose(back.rotation, a.rotation, atol=1e-12)
 
 
+@pytest.mark.parametrize("dim", [2, 3])
+def test_about_a_point_scales_and_turns_around_it_then_shifts(dim):
+    rng = np.random.default_rng(7)
+    centre, shift, rotation = rng.normal(size=dim), rng.normal(size=dim), random_rotation(dim, rng)
+    pts = rng.normal(size=(10, dim))
+    moved = Similarity.about(centre, 1.7, rotation, shift)
+    np.testing.assert_allclose(
+        moved.apply(pts), 1.7 * (pts - centre) @ rotation.T + centre + shift, atol=1e-12
+    )
+    np.testing.assert_allclose(Similarity.about(centre, 1.7, rotation).apply(centre), centre, atol=1e-12)
+
+
 def test_quaternion_round_trip_uses_ros_order_xyzw():
     quarter_turn_about_z = Similarity.from_quaternion(
         1.0, [0, 0, np.sin(np.pi / 4), np.cos(np.pi / 4)], [0, 0, 0]
