@@ -19,34 +19,9 @@ makes the three blocks comparable, which the least-squares step above needs.
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import expm, logm
-from scipy.spatial.transform import Rotation
 
+from .rotations import exp_rotation, log_rotation
 from .similarity import FloatArray, Similarity
-
-
-def _log_rotation(rotation: FloatArray) -> FloatArray:
-    dim = rotation.shape[0]
-    if dim == 2:
-        return np.array([np.arctan2(rotation[1, 0], rotation[0, 0])])
-    if dim == 3:
-        vector: FloatArray = Rotation.from_matrix(rotation).as_rotvec()
-        return vector
-    skew: FloatArray = np.real(logm(rotation))
-    return skew[np.triu_indices(dim, 1)]
-
-
-def _exp_rotation(vector: FloatArray, dim: int) -> FloatArray:
-    if dim == 2:
-        c, s = np.cos(vector[0]), np.sin(vector[0])
-        return np.array([[c, -s], [s, c]])
-    if dim == 3:
-        matrix: FloatArray = Rotation.from_rotvec(vector).as_matrix()
-        return matrix
-    skew = np.zeros((dim, dim))
-    skew[np.triu_indices(dim, 1)] = vector
-    rotation: FloatArray = expm(skew - skew.T)
-    return rotation
 
 
 class AndersonAccelerator:
@@ -65,7 +40,7 @@ class AndersonAccelerator:
         return np.concatenate(
             (
                 [np.log(sim.scale / self.reference.scale)],
-                _log_rotation(sim.rotation @ self.reference.rotation.T),
+                log_rotation(sim.rotation @ self.reference.rotation.T),
                 (sim.apply(self.centroid) - self._anchor) / self.radius,
             )
         )
@@ -73,7 +48,7 @@ class AndersonAccelerator:
     def decode(self, x: FloatArray) -> Similarity:
         dim = self.centroid.shape[0]
         scale = self.reference.scale * float(np.exp(x[0]))
-        rotation = _exp_rotation(x[1:-dim], dim) @ self.reference.rotation
+        rotation = exp_rotation(x[1:-dim], dim) @ self.reference.rotation
         landing = self._anchor + x[-dim:] * self.radius
         return Similarity._trusted(scale, rotation, landing - scale * rotation @ self.centroid)
 

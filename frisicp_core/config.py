@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from enum import Enum
 
@@ -46,6 +47,41 @@ class Initialization(str, Enum):
 
 
 @dataclass(frozen=True)
+class InitialGuess:
+    """A pose known roughly, and how roughly: RViz's "2D Pose Estimate", a GNSS fix, a known
+    mounting. A cold registration searches around it instead of searching blind.
+
+    ``similarity``: the guessed pose, model ~ s R data + t; t is where the data frame's origin
+    lands in the model frame (the sensor's position for a sensor frame).
+    ``rotation_deg``, ``translation``: 1-sigma of the guess, in degrees and model units (of t).
+    ``scale``: 1-sigma relative error of ``similarity.scale``, or None when the scale is unknown
+    (then ``similarity.scale`` is only a starting value and the scale is searched).
+    Answers farther than :data:`frisicp_core.hypotheses.GUESS_SIGMAS` sigmas from the guess are
+    not searched for, and a result that ends there is not reliable.
+    """
+
+    similarity: Similarity
+    rotation_deg: float
+    translation: float
+    scale: float | None = None
+
+    def __post_init__(self) -> None:
+        _require(isinstance(self.similarity, Similarity), "InitialGuess.similarity must be a Similarity")
+        _require(
+            math.isfinite(self.rotation_deg) and self.rotation_deg >= 0,
+            f"InitialGuess.rotation_deg must be finite and >= 0, got {self.rotation_deg}",
+        )
+        _require(
+            math.isfinite(self.translation) and self.translation >= 0,
+            f"InitialGuess.translation must be finite and >= 0, got {self.translation}",
+        )
+        _require(
+            self.scale is None or (math.isfinite(self.scale) and self.scale >= 0),
+            f"InitialGuess.scale must be None (unknown) or finite and >= 0, got {self.scale}",
+        )
+
+
+@dataclass(frozen=True)
 class ConvergenceCriteria:
     """When one level stops iterating (like Open3D's ICPConvergenceCriteria).
 
@@ -81,7 +117,8 @@ class RegistrationConfig:
     Paper options: ``method``, ``levels`` and ``coarsest_points`` (sparse-to-dense hierarchy),
     ``criteria``. Ours, on by default: ``overlap`` (estimated per direction), ``symmetric``
     (scale rule), ``initialization`` (hypothesis search), ``acceleration``. Also ``initial``
-    (warm start), ``max_distance`` (gating), ``drop_nonfinite``, ``seed`` (the random
+    (warm start: tracking, iterated from there), ``guess`` (a rough pose with its uncertainty: searched
+    around), ``max_distance`` (gating), ``drop_nonfinite``, ``seed`` (the random
     down-sampling), ``backend`` (KD-tree library).
 
     ``overlap``: None (default) estimates, in each direction separately and at every iteration,
@@ -114,6 +151,7 @@ class RegistrationConfig:
     dense_targets: bool = True
     initialization: Initialization = Initialization.SEARCH
     initial: Similarity | None = None
+    guess: InitialGuess | None = None
     acceleration: bool = True
     drop_nonfinite: bool = False
     seed: int = 0
@@ -134,6 +172,7 @@ class RegistrationConfig:
         )
         _require(self.backend in BACKENDS, f"unknown backend {self.backend!r}; choose one of {BACKENDS}")
         _require(self.initial is None or isinstance(self.initial, Similarity), "initial must be a Similarity")
+        _require(self.guess is None or isinstance(self.guess, InitialGuess), "guess must be an InitialGuess")
 
     @classmethod
     def paper(cls, method: Method | str = Method.FRISICP, **overrides: object) -> RegistrationConfig:

@@ -26,9 +26,9 @@ import itertools
 
 import numpy as np
 
-from .config import Initialization, Method, RegistrationConfig
+from .config import InitialGuess, Initialization, Method, RegistrationConfig
 from .points import centroid, rms_radius
-from .similarity import FloatArray, Similarity
+from .similarity import FloatArray, Similarity, rotation_angle
 
 # Scales of the in-place hypotheses, in octaves around the RMS-radius ratio: a part of a surface
 # has an RMS radius between about a quarter and all of the whole's, so the ratio misses the true
@@ -37,6 +37,9 @@ IN_PLACE_OCTAVES = tuple(k / 2 for k in range(-6, 7))
 # Turn of the turned in-place hypotheses, in radians (see benchmarks/turned_frames.py for the
 # turns they reach).
 IN_PLACE_TURN = np.deg2rad(30.0)
+# An initial guess is searched within this many of its sigmas, and a result beyond them (plus the
+# verdict's tolerances) is not reliable: the guess says the answer is not there.
+GUESS_SIGMAS = 3.0
 
 
 def principal_axes(points: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray]:
@@ -66,6 +69,8 @@ def initial_hypotheses(
         if config.initial.dim != dim:
             raise ValueError(f"initial similarity is {config.initial.dim}-D but the points are {dim}-D")
         families = [[config.initial]]
+    elif config.guess is not None:
+        families = guess_hypotheses(config.guess, radius_ratio(data, model), dim)
     elif config.initialization is Initialization.IDENTITY:
         families = [[Similarity.identity(dim)]]
     else:
@@ -91,6 +96,54 @@ def initial_hypotheses(
             for family in families
         ]
     return families
+
+
+def guess_hypotheses(guess: InitialGuess, ratio: float, dim: int) -> list[list[Similarity]]:
+    """Starting poses around an initial guess, in families: the guess itself; when its scale is
+    unknown, the guess at the scales ``ratio * 2^k`` (k in :data:`IN_PLACE_OCTAVES`, the data
+    frame's origin kept where the guess puts it); the guess turned by two of its sigmas either
+    way in each coordinate plane (about where it puts the origin), and shifted by two sigmas
+    either way along each axis. The sigmas bound the search: nothing farther is tried."""
+    base = guess.similarity
+    if base.dim != dim:
+        raise ValueError(f"the initial guess is {base.dim}-D but the points are {dim}-D")
+    if guess.scale is None:
+        base = Similarity(ratio, base.rotation, base.translation)
+    families = [[base]]
+    if guess.scale is None:
+        families.append(
+            [Similarity(ratio * 2.0**k, base.rotation, base.translation) for k in IN_PLACE_OCTAVES]
+        )
+    turn = np.deg2rad(min(2.0 * guess.rotation_deg, 60.0))
+    if turn > 0:
+        families.append(
+            [Similarity(base.scale, q @ base.rotation, base.translation) for q in plane_rotations(dim, turn)]
+        )
+    if guess.translation > 0:
+        shifts = 2.0 * guess.translation * np.concatenate([np.eye(dim), -np.eye(dim)])
+        families.append([Similarity(base.scale, base.rotation, base.translation + d) for d in shifts])
+    return families
+
+
+def beyond_guess(guess: InitialGuess, result: Similarity, model_radius: float) -> str:
+    """Why ``result`` lies outside the region an initial guess allows (:data:`GUESS_SIGMAS` of
+    its sigmas, plus 1 degree, 1 % and 1 % of the model's radius for guesses given as exact),
+    or '' when it lies inside."""
+    base = guess.similarity
+    problems = []
+    turn = np.degrees(rotation_angle(result.rotation @ base.rotation.T))
+    if turn > GUESS_SIGMAS * guess.rotation_deg + 1.0:
+        problems.append(f"{turn:.3g} deg from the guess's rotation (sigma {guess.rotation_deg:.3g} deg)")
+    shift = float(np.linalg.norm(result.translation - base.translation))
+    if shift > GUESS_SIGMAS * guess.translation + 0.01 * model_radius:
+        problems.append(f"{shift:.3g} from the guess's position (sigma {guess.translation:.3g})")
+    if guess.scale is not None:
+        ratio = abs(np.log(result.scale / base.scale))
+        if ratio > GUESS_SIGMAS * guess.scale + 0.01:
+            problems.append(
+                f"scale {result.scale:.4g} against the guess's {base.scale:.4g} (sigma {guess.scale:.3g})"
+            )
+    return "; ".join(f"the result is {p}" for p in problems)
 
 
 def plane_rotations(dim: int, angle: float) -> list[FloatArray]:

@@ -60,6 +60,19 @@ class NearestNeighbors:
         dist, idx = self._tree.query(q, k=1, workers=-1)
         return dist * dist, idx.astype(np.int64, copy=False)
 
+    def query_k(self, queries: FloatArray, k: int) -> tuple[FloatArray, np.ndarray]:
+        """The ``k`` nearest stored points of every query row, nearest first: (squared distances,
+        int64 indices), both (n, k). ``k`` is capped at the number of stored points."""
+        q = np.ascontiguousarray(queries, dtype=np.float64)
+        k = min(k, self.points.shape[0])
+        if self.backend == "pykdtree":
+            dist_sq, idx = self._tree.query(q, k=k, sqr_dists=True)
+            dist_sq = np.asarray(dist_sq, dtype=np.float64).reshape(q.shape[0], k)
+            return dist_sq, idx.astype(np.int64).reshape(q.shape[0], k)
+        dist, idx = self._tree.query(q, k=k, workers=-1)
+        dist = np.asarray(dist, dtype=np.float64).reshape(q.shape[0], k)
+        return dist * dist, np.asarray(idx, dtype=np.int64).reshape(q.shape[0], k)
+
     def spacing(self, sample: int = 256) -> float:
         """Median distance from a stored point to its nearest *other* stored point.
 

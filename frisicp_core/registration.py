@@ -45,7 +45,7 @@ from numpy.typing import ArrayLike
 from .acceleration import AndersonAccelerator
 from .config import Method, RegistrationConfig
 from .estimate import PairPart, estimate_similarities
-from .hypotheses import covariance_scale_bounds, initial_hypotheses
+from .hypotheses import beyond_guess, covariance_scale_bounds, initial_hypotheses
 from .kdtree import NearestNeighbors
 from .overlap import Selection, select_pairs
 from .points import as_point_set, centroid, check_same_dimension, rms_radius
@@ -53,6 +53,7 @@ from .poses import PoseBatch
 from .result import IterationRecord, LevelReport, RegistrationResult
 from .sampling import downsample, in_spatial_order, level_sizes
 from .similarity import FloatArray, Similarity
+from .uncertainty import Uncertainty, estimate_uncertainty, surface_normals
 from .verdict import judge, spread
 
 # Most passes a hypothesis gets on the screening level to settle into its local minimum.
@@ -652,6 +653,7 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
         )
         reports.append(report)
 
+    uncertainty = _uncertainty(levels[last], pairs, sim, rng)
     rms, forward_rms, backward_rms = pairs.rms()
     overlap_forward = float(pairs.forward.fraction[0])
     overlap_backward = float(pairs.backward.fraction[0]) if pairs.backward is not None else float("nan")
@@ -666,6 +668,11 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
         model_radius=model_radius,
         spreads=(spread(data_set), spread(model_set)),
     )
+    reliable, reason = verdict.reliable, verdict.reason
+    if config.guess is not None and config.initial is None:
+        outside = beyond_guess(config.guess, sim, model_radius)
+        if outside:
+            reliable, reason = False, "; ".join(filter(None, (reason, outside)))
     return RegistrationResult(
         similarity=sim,
         rms=rms,
@@ -679,7 +686,25 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
         method=config.method,
         overlap_forward=overlap_forward,
         overlap_backward=overlap_backward,
-        reliable=verdict.reliable,
-        reason=verdict.reason,
+        reliable=reliable,
+        reason=reason,
         warm_started=config.initial is not None,
+        uncertainty=uncertainty,
+    )
+
+
+def _uncertainty(level: _Level, pairs: _Pass, sim: Similarity, rng: np.random.Generator) -> Uncertainty:
+    """The covariance of ``sim`` from the kept pairs of the final pass, forward and backward
+    (:mod:`frisicp_core.uncertainty`); the normals are the model's, at the paired model points."""
+    keep = pairs.forward.keep[0]
+    data_points = [level.data[keep]]
+    model_index = [pairs.forward_index[0][keep]]
+    if pairs.backward is not None and pairs.backward_index is not None:
+        back = pairs.backward.keep[0]
+        data_points.append(level.data[pairs.backward_index[0][back]])
+        model_index.append(np.flatnonzero(back))
+    index = np.concatenate(model_index)
+    normals = surface_normals(level.model_tree, index)
+    return estimate_uncertainty(
+        sim.apply(np.concatenate(data_points)), level.model[index], normals, sim.apply(level.data_mean), rng
     )

@@ -4,8 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 from .config import Method
-from .similarity import Similarity
+from .similarity import FloatArray, Similarity
+from .uncertainty import Uncertainty
 
 
 @dataclass(frozen=True)
@@ -44,6 +47,9 @@ class RegistrationResult:
     (:mod:`frisicp_core.verdict`): False means do not trust or reuse this similarity, and
     ``reason`` says why. ``warm_started`` is True when the result comes from ``config.initial``
     (False after a cold start, including a fallback from an implausible warm start).
+    ``uncertainty`` is the estimate's covariance and its 1-sigma summary
+    (:class:`frisicp_core.uncertainty.Uncertainty`: ``scale`` relative, ``rotation_deg``,
+    ``translation`` in model units at the data centroid; ``pose_covariance`` for ROS).
     """
 
     similarity: Similarity
@@ -61,6 +67,18 @@ class RegistrationResult:
     reliable: bool
     reason: str
     warm_started: bool
+    uncertainty: Uncertainty | None = None
+
+    @property
+    def covariance(self) -> FloatArray:
+        """The (p, p) covariance of the similarity over (log-scale, rotation vector, displacement
+        of the data centroid's image), see :mod:`frisicp_core.uncertainty`; all NaN when none was
+        estimated (a result that failed before the final pairs existed)."""
+        if self.uncertainty is None:
+            dim = self.similarity.dim
+            size = 1 + dim * (dim - 1) // 2 + dim
+            return np.full((size, size), np.nan)
+        return self.uncertainty.covariance
 
     @property
     def iterations(self) -> tuple[int, ...]:

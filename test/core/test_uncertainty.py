@@ -1,0 +1,78 @@
+"""Every result states its uncertainty: a covariance in a documented layout, converted to ROS's
+pose covariance, growing with noise and along directions the clouds do not determine."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface, register
+from frisicp_core.rotations import exp_rotation
+from frisicp_core.uncertainty import Uncertainty
+
+TRUTH = Similarity(0.25, axis_angle_rotation([0.1, 0.4, 1.0], 0.8), np.array([1.0, 2.0, 0.5]))
+
+
+def perturbed(sim: Similarity, xi: np.ndarray, centre: np.ndarray) -> Similarity:
+    """exp(xi) applied about ``centre`` on the left of ``sim`` (the layout of the covariance)."""
+    turn = exp_rotation(xi[1:4], 3)
+    scale = np.exp(xi[0])
+    return Similarity(
+        sim.scale * scale, turn @ sim.rotation, centre + scale * turn @ (sim.translation - centre) + xi[4:]
+    )
+
+
+def test_the_covariance_carried_to_another_point_matches_sampling() -> None:
+    rng = np.random.default_rng(1)
+    root = rng.normal(size=(7, 7)) * np.array([0.01, 0.02, 0.01, 0.03, 0.1, 0.2, 0.05])
+    uncertainty = Uncertainty(root @ root.T, np.array([1.0, 0.0, 2.0]))
+    point = np.array([4.0, -3.0, 1.0])
+    samples = rng.multivariate_normal(np.zeros(7), uncertainty.covariance, size=20000) * 1e-3
+    moved = np.array(
+        [perturbed(TRUTH, xi, uncertainty.centre).apply(TRUTH.inverse().apply(point)) for xi in samples]
+    )
+    expected = uncertainty.at(point).covariance[4:, 4:] * 1e-6
+    assert np.cov(moved.T) == pytest.approx(expected, rel=0.05, abs=0.05 * np.abs(expected).max())
+
+
+def test_the_ros_pose_covariance_is_position_then_roll_pitch_yaw_at_the_origin() -> None:
+    covariance = np.diag([1e-4, 1.0, 2.0, 3.0, 4.0, 5.0, 6.0])
+    uncertainty = Uncertainty(covariance, np.zeros(3))
+    pose = uncertainty.pose_covariance(Similarity(1.0, np.eye(3), np.zeros(3)))
+    assert np.diag(pose) == pytest.approx([4.0, 5.0, 6.0, 1.0, 2.0, 3.0])
+    planar = Uncertainty(np.diag([1e-4, 7.0, 1.0, 2.0]), np.zeros(2))
+    pose_2d = planar.pose_covariance(Similarity(1.0, np.eye(2), np.zeros(2)))
+    assert np.diag(pose_2d) == pytest.approx([1.0, 2.0, 0.0, 0.0, 0.0, 7.0])
+
+
+def registered_with_noise(noise: float, seed: int) -> Uncertainty:
+    model = bumpy_surface(5000)
+    data = TRUTH.inverse().apply(model + np.random.default_rng(seed).normal(scale=noise, size=model.shape))
+    result = register(data, model)
+    assert result.uncertainty is not None
+    return result.uncertainty
+
+
+def test_sigmas_grow_with_the_noise() -> None:
+    quiet = [registered_with_noise(0.003, seed) for seed in (100, 101)]
+    noisy = [registered_with_noise(0.009, seed) for seed in (100, 101)]
+    for name in ("scale", "rotation_deg", "translation"):
+        assert min(getattr(u, name) for u in noisy) > 2.0 * max(getattr(u, name) for u in quiet)
+
+
+def test_a_noise_free_copy_is_certain() -> None:
+    model = bumpy_surface(3000)
+    result = register(TRUTH.inverse().apply(model), model)
+    assert result.uncertainty is not None
+    assert result.uncertainty.scale < 1e-9 and result.uncertainty.rotation_deg < 1e-7
+
+
+def test_a_plane_leaves_its_sliding_directions_undetermined() -> None:
+    """A flat patch fixes its normal offset and tilt but not a slide or a turn within the plane."""
+    rng = np.random.default_rng(4)
+    plane = np.column_stack([rng.uniform(-1, 1, (4000, 2)), rng.normal(scale=0.002, size=4000)])
+    data = plane[:2000] + rng.normal(scale=0.002, size=(2000, 3))
+    result = register(data, plane[2000:])
+    assert result.uncertainty is not None
+    surface = registered_with_noise(0.002, 100)
+    assert result.uncertainty.translation > 30 * surface.translation
