@@ -82,6 +82,29 @@ class InitialGuess:
 
 
 @dataclass(frozen=True)
+class Tolerance:
+    """How close to the truth a result must be known to be before it is called reliable.
+
+    A result is reliable only when three of its standard deviations lie within these (and it
+    passes the other checks of :mod:`frisicp_core.verdict`); two poses farther apart than these
+    in any component are distinct answers (an ambiguity when both fit about as well).
+    ``rotation_deg`` in degrees, ``scale`` relative, ``translation`` a share of the model's
+    bounding-box diagonal (of where the data's centroid lands).
+    """
+
+    rotation_deg: float = 1.0
+    scale: float = 0.01
+    translation: float = 0.005
+
+    def __post_init__(self) -> None:
+        for name in ("rotation_deg", "scale", "translation"):
+            value = getattr(self, name)
+            _require(
+                math.isfinite(value) and value > 0, f"tolerance {name} must be finite and > 0, got {value}"
+            )
+
+
+@dataclass(frozen=True)
 class ConvergenceCriteria:
     """When one level stops iterating (like Open3D's ICPConvergenceCriteria).
 
@@ -152,6 +175,9 @@ class RegistrationConfig:
     initialization: Initialization = Initialization.SEARCH
     initial: Similarity | None = None
     guess: InitialGuess | None = None
+    tolerance: Tolerance = field(default_factory=Tolerance)
+    probe: bool = True
+    polish: bool = True
     acceleration: bool = True
     drop_nonfinite: bool = False
     seed: int = 0
@@ -190,6 +216,8 @@ class RegistrationConfig:
             "dense_targets": False,
             "criteria": ConvergenceCriteria(noise_floor=False),
             "acceleration": False,
+            "probe": False,
+            "polish": False,
         }
         settings.update(overrides)
         return cls(**settings)  # type: ignore[arg-type]

@@ -43,17 +43,20 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .acceleration import AndersonAccelerator
+from .ambiguity import AMBIGUITY_MARGIN, Competitor, probe_starts, separation
 from .config import Method, RegistrationConfig
 from .estimate import PairPart, estimate_similarities
+from .fit import Fit, measure_fit
 from .hypotheses import beyond_guess, covariance_scale_bounds, initial_hypotheses
 from .kdtree import NearestNeighbors
 from .overlap import Selection, select_pairs
 from .points import as_point_set, centroid, check_same_dimension, rms_radius
 from .poses import PoseBatch
+from .refine import ModelNormals, Sets, polish, uncertainty_of
 from .result import IterationRecord, LevelReport, RegistrationResult
 from .sampling import downsample, in_spatial_order, level_sizes
 from .similarity import FloatArray, Similarity
-from .uncertainty import Uncertainty, estimate_uncertainty, surface_normals
+from .uncertainty import Uncertainty
 from .verdict import judge, spread
 
 # Most passes a hypothesis gets on the screening level to settle into its local minimum.
@@ -88,6 +91,10 @@ _ACCELERATE_FROM = 3
 _ACCELERATE_FROM_TRACKING = 2
 # Points sampled to measure a set's spacing (median distance to the nearest other point).
 _SPACING_SAMPLE = 256
+# Most passes a probe of the answer (frisicp_core.ambiguity) takes to settle.
+_PROBE_PASSES = 30
+# Most probes refined down the levels to be compared with the answer on the full sets.
+_PROBE_REFINED = 3
 
 
 @dataclass
@@ -286,6 +293,25 @@ def _repeats_better(poses: PoseBatch, merit: FloatArray, level: _Level, toleranc
     return repeats
 
 
+def _rows(pairs: _Pass, rows: np.ndarray) -> _Pass:
+    """The pairs of poses ``rows`` only."""
+    backward = pairs.backward
+    return _Pass(
+        pairs.forward_index[rows],
+        Selection(
+            pairs.forward.keep[rows],
+            pairs.forward.kept[rows],
+            pairs.forward.sum_sq[rows],
+            pairs.forward.merit[rows],
+        ),
+        pairs.backward_index[rows] if pairs.backward_index is not None else None,
+        Selection(backward.keep[rows], backward.kept[rows], backward.sum_sq[rows], backward.merit[rows])
+        if backward is not None
+        else None,
+        pairs.merit[rows],
+    )
+
+
 def _rms(sum_sq: float, count: float) -> float:
     return float(np.sqrt(sum_sq / count)) if count > 0 else float("nan")
 
@@ -450,6 +476,28 @@ class _Solver:
         merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
         minima += [(float(merit[k]), poses[k]) for k in range(len(poses)) if merit[k] < np.inf]
         return _finalists(minima, level, tolerance)
+
+    def settle(
+        self, level: _Level, poses: PoseBatch, tolerance: float, passes: int
+    ) -> tuple[PoseBatch, FloatArray]:
+        """Plain ICP steps for every pose of the batch until each moves the data by less than
+        ``tolerance`` (at most ``passes``); the poses reached and their merits."""
+        pairs = self.correspond(level, poses)
+        merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
+        active = np.flatnonzero(np.isfinite(merit))
+        pairs = _rows(pairs, active)  # the pairs of the active poses, in their order
+        for _ in range(passes):
+            if active.size == 0:
+                break
+            current = poses.take(active)
+            stepped, valid = self.step(level, pairs)
+            moved = level.motion(current, stepped)
+            poses = poses.assign(active, current.where(valid, stepped))
+            pairs = self.correspond(level, poses.take(active))
+            merit[active] = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
+            keep = np.flatnonzero(valid & (moved > tolerance))
+            pairs, active = _rows(pairs, keep), active[keep]
+        return poses, merit
 
     def rough_merits(self, level: _Level, hypotheses: list[Similarity]) -> FloatArray:
         """Merit of each starting pose on every :data:`_ROUGH_EVERY`-th point of ``level`` (fewer
@@ -653,7 +701,33 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
         )
         reports.append(report)
 
-    uncertainty = _uncertainty(levels[last], pairs, sim, rng)
+    competitor: Competitor | None = None
+    if config.method is Method.FRISICP and config.initial is None and config.probe:
+        refine = _Refiner(solver, levels, config, last)
+        competitor, better = _probe(refine, sim, float(pairs.merit[0]), data_set, model_set, config)
+        if better is not None:
+            sim, pairs, more = better
+            reports.extend(more)
+            competitor, _ = _probe(refine, sim, float(pairs.merit[0]), data_set, model_set, config)
+    uncertainty: Uncertainty | None = None
+    if bidirectional and config.polish:
+        final = levels[last]
+        assert final.data_tree is not None
+        sets = Sets(
+            final.data_tree,
+            final.model_tree,
+            final.data_spacing,
+            final.model_spacing,
+            ModelNormals(final.model_tree),
+        )
+        data_centroid = centroid(data_set)
+        sim, plane = polish(sim, sets, data_centroid)
+        uncertainty = uncertainty_of(sim, plane, sets, data_centroid, rng)
+    fit: Fit | None = None
+    if bidirectional:
+        final = levels[last]
+        assert final.data_tree is not None
+        fit = measure_fit(sim, final.data_tree, final.model_tree, final.data_spacing, final.model_spacing)
     rms, forward_rms, backward_rms = pairs.rms()
     overlap_forward = float(pairs.forward.fraction[0])
     overlap_backward = float(pairs.backward.fraction[0]) if pairs.backward is not None else float("nan")
@@ -667,6 +741,11 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
         moment_scale=model_radius / data_radius,
         model_radius=model_radius,
         spreads=(spread(data_set), spread(model_set)),
+        fit=fit,
+        competitor=competitor,
+        uncertainty=uncertainty,
+        tolerance=config.tolerance,
+        model_diagonal=float(np.linalg.norm(model_set.max(axis=0) - model_set.min(axis=0))),
     )
     reliable, reason = verdict.reliable, verdict.reason
     if config.guess is not None and config.initial is None:
@@ -690,21 +769,78 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
         reason=reason,
         warm_started=config.initial is not None,
         uncertainty=uncertainty,
+        competitor=competitor,
     )
 
 
-def _uncertainty(level: _Level, pairs: _Pass, sim: Similarity, rng: np.random.Generator) -> Uncertainty:
-    """The covariance of ``sim`` from the kept pairs of the final pass, forward and backward
-    (:mod:`frisicp_core.uncertainty`); the normals are the model's, at the paired model points."""
-    keep = pairs.forward.keep[0]
-    data_points = [level.data[keep]]
-    model_index = [pairs.forward_index[0][keep]]
-    if pairs.backward is not None and pairs.backward_index is not None:
-        back = pairs.backward.keep[0]
-        data_points.append(level.data[pairs.backward_index[0][back]])
-        model_index.append(np.flatnonzero(back))
-    index = np.concatenate(model_index)
-    normals = surface_normals(level.model_tree, index)
-    return estimate_uncertainty(
-        sim.apply(np.concatenate(data_points)), level.model[index], normals, sim.apply(level.data_mean), rng
+@dataclass
+class _Refiner:
+    """Runs a pose down the levels from the first dense one, as the answer was."""
+
+    solver: _Solver
+    levels: _Pyramid
+    config: RegistrationConfig
+    last: int
+
+    def settle_first(self, starts: list[Similarity]) -> tuple[PoseBatch, FloatArray]:
+        """Every start settled on the first dense level (plain steps, batched)."""
+        tolerance = _level_motion(self.config, 0, self.last) * self.solver.model_radius
+        return self.solver.settle(self.levels[0], PoseBatch.of(starts), tolerance, _PROBE_PASSES)
+
+    def down(self, sim: Similarity) -> tuple[Similarity, _Pass, list[LevelReport]]:
+        """``sim`` refined on the finer levels; its final pairs (their merit: the full sets')."""
+        history = len(self.solver.history)
+        reports = []
+        pairs = self.solver.correspond(self.levels[0], PoseBatch.of([sim]))
+        for index in range(1, self.last + 1):
+            sim, report, pairs = self.solver.run_level(
+                index, self.levels[index], sim, relative_motion=_level_motion(self.config, index, self.last)
+            )
+            reports.append(report)
+        del self.solver.history[history:]
+        return sim, pairs, reports
+
+
+def _probe(
+    refine: _Refiner,
+    sim: Similarity,
+    merit: float,
+    data: FloatArray,
+    model: FloatArray,
+    config: RegistrationConfig,
+) -> tuple[Competitor | None, tuple[Similarity, _Pass, list[LevelReport]] | None]:
+    """Probe the answer ``sim`` (final merit ``merit``; :mod:`frisicp_core.ambiguity`): starts
+    around it settle on the first dense level; those that end distinct from the answer settled
+    there, within the margin or better, are refined down the levels like the answer and compared
+    with it on the full sets. Returns the closest competitor within the margin, if any, and a
+    distinct pose that fits clearly better (refined: pose, final pairs, level reports), if any."""
+    centre = centroid(data)
+    starts = [sim, *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data))]
+    poses, merits = refine.settle_first(starts)
+    diagonal = float(np.linalg.norm(model.max(axis=0) - model.min(axis=0)))
+    settled = poses[0]
+    candidates = sorted(
+        (float(merits[k]) / float(merits[0]), k)
+        for k in range(1, len(starts))
+        if np.isfinite(merits[k])
+        and float(merits[k]) <= (1.0 + AMBIGUITY_MARGIN) * float(merits[0])
+        and separation(poses[k], settled, centre, diagonal, config.tolerance) > 1.0
     )
+    competitor: Competitor | None = None
+    kept: list[Similarity] = []
+    for _, k in candidates:
+        if any(separation(poses[k], other, centre, diagonal, config.tolerance) <= 1.0 for other in kept):
+            continue  # the same basin as a candidate already refined
+        kept.append(poses[k])
+        refined, pairs, reports = refine.down(poses[k])
+        apart = separation(refined, sim, centre, diagonal, config.tolerance)
+        ratio = float(pairs.merit[0]) / merit
+        if apart <= 1.0 or not np.isfinite(ratio):
+            continue
+        if ratio < 1.0 - AMBIGUITY_MARGIN:
+            return None, (refined, pairs, reports)
+        if ratio <= 1.0 + AMBIGUITY_MARGIN and (competitor is None or ratio < competitor.merit_ratio):
+            competitor = Competitor(refined, ratio, apart)
+        if len(kept) == _PROBE_REFINED:
+            break
+    return competitor, None

@@ -6,6 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .ambiguity import Competitor
 from .config import Method
 from .similarity import FloatArray, Similarity
 from .uncertainty import Uncertainty
@@ -68,6 +69,7 @@ class RegistrationResult:
     reason: str
     warm_started: bool
     uncertainty: Uncertainty | None = None
+    competitor: Competitor | None = None
 
     @property
     def covariance(self) -> FloatArray:

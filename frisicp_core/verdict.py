@@ -26,12 +26,20 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .ambiguity import Competitor
+from .config import Tolerance
+from .fit import Fit
 from .overlap import MIN_FRACTION
 from .similarity import FloatArray, Similarity
+from .uncertainty import Uncertainty
 
 SCALE_RANGE = 10.0
 MAX_SPREAD = 1000.0
 MAX_RELATIVE_RMS = 0.1
+# Largest share of near misses (frisicp_core.fit) a fitting pose leaves in the better direction.
+MAX_NEAR_SHARE = 0.25
+# A result is reliable only when this many standard deviations lie within the tolerances.
+SIGMAS = 3.0
 # Points that spread() looks at: a median needs no more.
 _SPREAD_SAMPLE = 4096
 
@@ -67,6 +75,11 @@ def judge(
     moment_scale: float,
     model_radius: float,
     spreads: tuple[float, float] = (1.0, 1.0),
+    fit: Fit | None = None,
+    competitor: Competitor | None = None,
+    uncertainty: Uncertainty | None = None,
+    tolerance: Tolerance | None = None,
+    model_diagonal: float = 0.0,
 ) -> Verdict:
     """The verdict on one result.
 
@@ -100,4 +113,33 @@ def judge(
             f"RMS {rms:.3g} is {rms / model_radius:.1%} of the model's radius"
             f" (a fit is within {MAX_RELATIVE_RMS:.0%})"
         )
+    if fit is not None and not fit.best_near_share <= MAX_NEAR_SHARE:
+        problems.append(
+            f"the clouds do not coincide where they meet: {fit.best_near_share:.0%} of the points near the"
+            f" other cloud miss its surface (noise {fit.expected_residual:.3g}; a fit leaves at most"
+            f" {MAX_NEAR_SHARE:.0%})"
+        )
+    if competitor is not None:
+        problems.append(
+            f"ambiguous: another pose {competitor.separation:.1f} tolerances away fits as well (merit"
+            f" ratio {competitor.merit_ratio:.3f}; scale {competitor.similarity.scale:.6g},"
+            f" turned {np.degrees(competitor.similarity.rotation_angle()):.3g} deg)"
+        )
+    if uncertainty is not None and tolerance is not None:
+        problems.extend(_uncertain(uncertainty, tolerance, model_diagonal))
     return Verdict(not problems, "; ".join(problems))
+
+
+def _uncertain(uncertainty: Uncertainty, tolerance: Tolerance, diagonal: float) -> list[str]:
+    """The components whose SIGMAS-sigma exceeds its tolerance."""
+    checks = (
+        ("rotation", uncertainty.rotation_deg, tolerance.rotation_deg, "deg"),
+        ("scale", uncertainty.scale * 100.0, tolerance.scale * 100.0, "%"),
+        ("translation", uncertainty.translation, tolerance.translation * diagonal, ""),
+    )
+    return [
+        f"not determined to the tolerance: {SIGMAS:g} sigma of the {name} is {SIGMAS * sigma:.3g}{unit}"
+        f" (tolerance {limit:.3g}{unit})"
+        for name, sigma, limit, unit in checks
+        if not SIGMAS * sigma <= limit
+    ]

@@ -20,7 +20,7 @@ from typing import Any, Literal, Protocol, TypeVar
 import numpy as np
 
 from frisicp_core import Similarity, downsample
-from frisicp_ros.stream.voxel import voxel_filter
+from frisicp_core.voxel import voxel_filter
 
 # sensor_msgs/PointField datatype constants (identical in rclpy and rosbags).
 INT8, UINT8, INT16, UINT16, INT32, UINT32, FLOAT32, FLOAT64 = range(1, 9)
@@ -172,7 +172,7 @@ def cloud_to_points(
 
     Organized clouds are flattened row by row; points with a NaN/Inf coordinate are dropped.
     With ``voxel_size`` > 0 only the first point of each occupied voxel is kept
-    (``frisicp_ros.stream.voxel``). Above ``max_points`` (None or 0: no cap) a uniformly random
+    (``frisicp_core.voxel``). Above ``max_points`` (None or 0: no cap) a uniformly random
     subset in the original order is kept, reproducible from ``seed``. Raises CloudError for
     malformed, empty and all-NaN clouds.
     """

@@ -60,11 +60,14 @@ def test_sigmas_grow_with_the_noise() -> None:
         assert min(getattr(u, name) for u in noisy) > 2.0 * max(getattr(u, name) for u in quiet)
 
 
-def test_a_noise_free_copy_is_certain() -> None:
+def test_a_noise_free_copy_is_certain_to_far_below_the_tolerances() -> None:
+    """Exact copies are registered exactly; the split-half spread (two different samplings of
+    the surface) still says a little, which is the honest side to err on."""
     model = bumpy_surface(3000)
     result = register(TRUTH.inverse().apply(model), model)
     assert result.uncertainty is not None
-    assert result.uncertainty.scale < 1e-9 and result.uncertainty.rotation_deg < 1e-7
+    assert result.uncertainty.scale < 1e-4 and result.uncertainty.rotation_deg < 1e-2
+    assert abs(np.log(result.similarity.scale / TRUTH.scale)) < 1e-9
 
 
 def test_a_plane_leaves_its_sliding_directions_undetermined() -> None:

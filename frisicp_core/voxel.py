@@ -1,4 +1,4 @@
-"""Voxel-grid down-sampling of (N, m) points: one point per occupied voxel, in numpy. No ROS.
+"""Voxel-grid down-sampling of (N, m) points: one point per occupied voxel, in numpy.
 
 A point x lies in the voxel ``floor(x / size)`` (per axis, computed in float64; voxels are
 half-open, [k size, (k + 1) size)). Of every occupied voxel the *first* point in input order is

@@ -5,11 +5,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from frisicp_core import bumpy_surface
-from frisicp_ros.stream import voxel
+from frisicp_core import bumpy_surface, voxel
+from frisicp_core.voxel import first_in_voxel, voxel_filter
 from frisicp_ros.stream.outputs import rosbags_message_types
 from frisicp_ros.stream.pointcloud2 import CloudError, points_to_parts, read_cloud
-from frisicp_ros.stream.voxel import first_in_voxel, voxel_filter
 
 
 def reference(points: np.ndarray, size: float) -> np.ndarray:
