@@ -62,6 +62,7 @@ def parser(
     if seed:
         command.add_argument("--seed", type=int, default=0, help="seed of the perturbations (default 0)")
     if report:
+        command.set_defaults(report_out=True)
         command.add_argument(
             "--out",
             type=Path,
@@ -72,7 +73,7 @@ def parser(
         )
     if repeats is not None:
         command.add_argument(
-            "--repeats", type=int, default=repeats, help=f"timed runs per case, medians (default {repeats})"
+            "--repeats", type=int, default=repeats, help=f"timed runs per case (default {repeats})"
         )
     if json_out:
         command.add_argument(
@@ -87,7 +88,7 @@ def parse(command: argparse.ArgumentParser, argv: Sequence[str] | None = None) -
     words = list(sys.argv[1:] if argv is None else argv)
     args = command.parse_args(words)
     args.argv = words
-    if "out" in vars(args) and args.out is None:
+    if getattr(args, "report_out", False) and args.out is None:
         args.out = report_path(args.script, args.quick)
     return args
 

@@ -33,6 +33,9 @@ def test_a_report_goes_to_docs_and_a_quick_run_to_build() -> None:
     assert (full.out, quick.out) == (ROOT / "docs" / "example.md", ROOT / "build" / "example.md")
     assert script.command_line(full) == "python benchmarks/example.py --seed 3"
     assert script.parse(command, ["--out", "x.md"]).out == Path("x.md")
+    own = script.parser(SCRIPT, None, "one case")  # a script with its own --out rule keeps it
+    own.add_argument("--out", type=Path, default=None)
+    assert script.parse(own, ["--quick"]).out is None
 
 
 def test_missing_data_is_a_skip_that_names_the_file(
