@@ -33,6 +33,8 @@ from frisicp_bench.metrics import pose_errors
 from frisicp_bench.report import case_record, write_report
 from frisicp_core import RegistrationConfig, Similarity, register, rotation_angle
 
+TITLE = "Full overlap at any rotation, default config"
+
 
 def any_rotation(dim: int, rng: np.random.Generator) -> np.ndarray:
     if dim == 2:
@@ -78,21 +80,20 @@ def main(argv: list[str] | None = None) -> int:
                 flush=True,
             )
         rows.append(
-            f"| {family.name} | {sum(r['success'] for r in outcomes)}/{len(outcomes)} | "
-            f"{max(r['rotation_deg'] for r in outcomes):.2g} | {100 * max(r['scale_error'] for r in outcomes):.2g} | "
-            f"{100 * max(r['translation_error'] for r in outcomes):.2g} | "
-            f"{sum(bool(r['reliable']) for r in outcomes)} | {statistics.median(r['seconds'] for r in outcomes):.3f} |"
+            [
+                family.name,
+                f"{sum(r['success'] for r in outcomes)}/{len(outcomes)}",
+                f"{max(r['rotation_deg'] for r in outcomes):.2g}",
+                f"{100 * max(r['scale_error'] for r in outcomes):.2g}",
+                f"{100 * max(r['translation_error'] for r in outcomes):.2g}",
+                sum(bool(r["reliable"]) for r in outcomes),
+                f"{statistics.median(r['seconds'] for r in outcomes):.3f}",
+            ]
         )
-    body = [
-        f"**{sum(r['success'] for r in records)}/{len(records)} strict successes.**",
-        "",
-        "| family | success | worst rotation error (deg) | worst scale error (%) | worst translation error (%) | reliable | median s |",
-        "|---|---|---|---|---|---|---|",
-        *rows,
-        "",
-    ]
-    title = "Full overlap at any rotation, default config"
-    write_report(args.out, title, script.command_line(args), body, records)
+    header = ["family", "success", "worst rotation error (deg)", "worst scale error (%)"]
+    header += ["worst translation error (%)", "reliable", "median s"]
+    summary = f"**{sum(r['success'] for r in records)}/{len(records)} strict successes.**"
+    write_report(args.out, TITLE, script.command_line(args), summary, (header, rows), records)
     return 0
 
 

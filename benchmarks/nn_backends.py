@@ -866,31 +866,39 @@ def voxel_centroid(points: np.ndarray, voxel: float) -> np.ndarray:
 DENSE_GRID_MAX = 1 << 26  # cells: the owner table is 8 bytes a cell of virtual memory, touched sparsely
 
 
-def voxel_last_dense(points: np.ndarray, voxel: float) -> np.ndarray:
-    """One point per occupied voxel without sorting: scatter point numbers into a per-cell table.
+def dense_owners(points: np.ndarray, voxel: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """Without sorting: scatter point numbers into a per-cell table, then read back for every
+    point the number its voxel's cell holds (the owner), with the point numbers; None for grids
+    over DENSE_GRID_MAX cells.
 
     With repeated indices a fancy assignment keeps the last write (numpy does so in practice, it
-    does not promise it; the point kept is "one of the voxel's points" either way). Only for
-    bounded grids (<= DENSE_GRID_MAX cells); otherwise use :func:`voxel_first`.
+    does not promise it; the owner is "one of the voxel's points" either way).
     """
     keys, cells = voxel_keys(points, voxel)
     if cells > DENSE_GRID_MAX:
-        return voxel_first(points, voxel)
+        return None
     order = np.arange(points.shape[0])
     owner = np.empty(cells, dtype=np.int64)
     owner[keys] = order
-    return points[owner[keys] == order]
+    return owner[keys], order
+
+
+def voxel_last_dense(points: np.ndarray, voxel: float) -> np.ndarray:
+    """One point per occupied voxel, its owner (:func:`dense_owners`; :func:`voxel_first` for
+    larger grids)."""
+    owners = dense_owners(points, voxel)
+    if owners is None:
+        return voxel_first(points, voxel)
+    owns, order = owners
+    return points[owns == order]
 
 
 def voxel_centroid_dense(points: np.ndarray, voxel: float) -> np.ndarray:
-    """Centroid per occupied voxel without sorting (as voxel_last_dense, then bincount)."""
-    keys, cells = voxel_keys(points, voxel)
-    if cells > DENSE_GRID_MAX:
+    """Centroid per occupied voxel without sorting (:func:`dense_owners`, then bincount)."""
+    owners = dense_owners(points, voxel)
+    if owners is None:
         return voxel_centroid(points, voxel)
-    order = np.arange(points.shape[0])
-    owner = np.empty(cells, dtype=np.int64)
-    owner[keys] = order
-    owns = owner[keys]
+    owns, order = owners
     head = owns == order
     slot = np.cumsum(head) - 1  # voxel number of each owning point
     inverse = slot[owns]
@@ -898,6 +906,42 @@ def voxel_centroid_dense(points: np.ndarray, voxel: float) -> np.ndarray:
     counts = np.bincount(inverse, minlength=count)
     sums = np.stack([np.bincount(inverse, weights=points[:, k], minlength=count) for k in range(3)], 1)
     return sums / counts[:, None]
+
+
+VoxelMethod = Callable[[np.ndarray, float], np.ndarray]
+VOXEL_METHODS: list[tuple[str, VoxelMethod]] = [
+    ("keys only (fast)", lambda p, v: voxel_keys(p, v)[0]),
+    ("keys only (naive, .min(axis=0))", voxel_keys_naive),
+    ("first point, naive keys + np.unique(return_index)", lambda p, v: voxel_first(p, v, naive=True)),
+    ("first point, fast keys + np.unique(return_index)", voxel_first),
+    ("one point, dense owner table (no sort)", voxel_last_dense),
+    ("centroid, np.unique(inverse) + bincount", voxel_centroid),
+    ("centroid, dense owner table + bincount (no sort)", voxel_centroid_dense),
+]
+
+
+def library_voxel_methods() -> list[tuple[str, VoxelMethod]]:
+    """small_gicp's and kiss-icp's voxel grids (C++), where installed: for reference."""
+    found: list[tuple[str, VoxelMethod]] = []
+    with contextlib.suppress(ImportError):
+        import small_gicp
+
+        found.append(
+            (
+                "centroid, small_gicp.voxelgrid_sampling (1 thread, C++)",
+                lambda p, v: small_gicp.voxelgrid_sampling(p, v, 1).points(),
+            )
+        )
+    with contextlib.suppress(ImportError):
+        from kiss_icp.pybind import kiss_icp_pybind as kiss
+
+        found.append(
+            (
+                "one point, kiss-icp _voxel_down_sample (C++)",
+                lambda p, v: np.asarray(kiss._voxel_down_sample(kiss._Vector3dVector(p), v)),
+            )
+        )
+    return found
 
 
 def bench_downsample(repeats: int, sizes: Sizes) -> list[dict]:
@@ -934,53 +978,8 @@ def bench_downsample(repeats: int, sizes: Sizes) -> list[dict]:
             lambda p=pts, n=n: p[np.sort(np.argpartition(rng.random(n), cap)[:cap])],
         )
         for voxel in (0.15, 0.3) if cloud.startswith("lidar") else (0.02, 0.04):
-            add(f"voxel {voxel}: keys only (fast)", cloud, lambda p=pts, v=voxel: voxel_keys(p, v)[0])
-            add(
-                f"voxel {voxel}: keys only (naive, .min(axis=0))",
-                cloud,
-                lambda p=pts, v=voxel: voxel_keys_naive(p, v),
-            )
-            add(
-                f"voxel {voxel}: first point, naive keys + np.unique(return_index)",
-                cloud,
-                lambda p=pts, v=voxel: voxel_first(p, v, naive=True),
-            )
-            add(
-                f"voxel {voxel}: first point, fast keys + np.unique(return_index)",
-                cloud,
-                lambda p=pts, v=voxel: voxel_first(p, v),
-            )
-            add(
-                f"voxel {voxel}: one point, dense owner table (no sort)",
-                cloud,
-                lambda p=pts, v=voxel: voxel_last_dense(p, v),
-            )
-            add(
-                f"voxel {voxel}: centroid, np.unique(inverse) + bincount",
-                cloud,
-                lambda p=pts, v=voxel: voxel_centroid(p, v),
-            )
-            add(
-                f"voxel {voxel}: centroid, dense owner table + bincount (no sort)",
-                cloud,
-                lambda p=pts, v=voxel: voxel_centroid_dense(p, v),
-            )
-            with contextlib.suppress(ImportError):
-                import small_gicp
-
-                add(
-                    f"voxel {voxel}: centroid, small_gicp.voxelgrid_sampling (1 thread, C++)",
-                    cloud,
-                    lambda p=pts, v=voxel: small_gicp.voxelgrid_sampling(p, v, 1).points(),
-                )
-            with contextlib.suppress(ImportError):
-                from kiss_icp.pybind import kiss_icp_pybind as kiss
-
-                add(
-                    f"voxel {voxel}: one point, kiss-icp _voxel_down_sample (C++)",
-                    cloud,
-                    lambda p=pts, v=voxel: np.asarray(kiss._voxel_down_sample(kiss._Vector3dVector(p), v)),
-                )
+            for label, method in VOXEL_METHODS + library_voxel_methods():
+                add(f"voxel {voxel}: {label}", cloud, lambda p=pts, v=voxel, m=method: m(p, v))
     return rows
 
 

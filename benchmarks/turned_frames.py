@@ -30,6 +30,7 @@ from frisicp_bench.metrics import pose_errors
 from frisicp_bench.report import case_record, write_report, wrong_but_reliable
 from frisicp_core import RegistrationConfig, Similarity, axis_angle_rotation, register
 
+TITLE = "A scan in its map with the frames turned apart, default config"
 ANGLES_DEG = (0, 15, 30, 45, 60, 75, 90)
 SCALES = (0.5, 1.0, 2.0)
 AXES = 2
@@ -67,30 +68,24 @@ def main(argv: list[str] | None = None) -> int:
                         f"scale {100 * errors.scale:6.2f} %  {result.seconds:.2f} s",
                         flush=True,
                     )
-    header = " | ".join(f"{a}°" for a in angles)
     rows = []
     for family in families:
         cells = []
         for angle in angles:
             group = [r for r in records if r["family"] == family.name and r["turn_deg"] == angle]
             cells.append(f"{sum(r['success'] for r in group)}/{len(group)}")
-        rows.append(f"| {family.name} | {' | '.join(cells)} |")
+        rows.append([family.name, *cells])
     totals = []
     for angle in angles:
         group = [r for r in records if r["turn_deg"] == angle]
         totals.append(f"**{sum(r['success'] for r in group)}/{len(group)}**")
-    body = [
+    rows.append(["all", *totals])
+    summary = (
         f"Strict successes per turn of the scan ({len(scales)} scales x {axes} axes per cell); "
-        f"{wrong_but_reliable(records)} of the failures were called reliable.",
-        "",
-        f"| scan → map | {header} |",
-        "|---|" + "---|" * len(angles),
-        *rows,
-        f"| all | {' | '.join(totals)} |",
-        "",
-    ]
-    title = "A scan in its map with the frames turned apart, default config"
-    write_report(args.out, title, script.command_line(args), body, records)
+        f"{wrong_but_reliable(records)} of the failures were called reliable."
+    )
+    header = ["scan → map", *(f"{a}°" for a in angles)]
+    write_report(args.out, TITLE, script.command_line(args), summary, (header, rows), records)
     return 0
 
 

@@ -55,11 +55,16 @@ def markdown_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> l
 
 
 def write_report(
-    out: Path, title: str, command: str, body: Sequence[str], records: list[dict[str, Any]]
+    out: Path,
+    title: str,
+    command: str,
+    summary: str,
+    table: tuple[Sequence[str], Sequence[Sequence[object]]],
+    records: list[dict[str, Any]],
 ) -> None:
-    """Write the report to ``out`` (the title, the :func:`provenance` line of ``command``, the
-    Markdown ``body``) and every case beside it as JSON; print the report."""
-    lines = [f"# {title}", "", provenance(command), "", *body]
+    """Write the report to ``out``: the title, the :func:`provenance` line of ``command``, the
+    ``summary`` paragraph and the ``table`` (header, rows); every case beside it as JSON. Print it."""
+    lines = [f"# {title}", "", provenance(command), "", summary, "", *markdown_table(*table), ""]
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(lines))
     out.with_suffix(".json").write_text(json.dumps({"command": command, "records": records}, indent=1) + "\n")
