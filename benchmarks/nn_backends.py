@@ -9,7 +9,7 @@ Sections (``--sections``, default all):
   node benchmark's closed surface), and their 1,000 and 4,472 point levels; queries aligned
   (the data on the model, as in most iterations) and misaligned (a far-off pose, as in the
   first iterations of a cold start);
-  (b) the Stanford bunny (35,947 points; skipped with a message when ../shared/data is absent);
+  (b) the Stanford bunny (35,947 points; skipped with a message when the data folder lacks it);
   (c) 2-D contours of 2,000 and 5,000 points.
   With 1 thread and with 2 threads where the library allows. Candidates are interleaved
   within every repeat (rotating order) and the table gives medians and the ratio

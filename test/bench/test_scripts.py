@@ -1,13 +1,17 @@
-"""What the scripts in benchmarks/ share (frisicp_bench.script, datasets.default_data_dir)."""
+"""What the scripts in benchmarks/ share: frisicp_bench.script, datasets.default_data_dir, frisicp_bench.neighbours."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
+import numpy as np
 import pytest
 
+import frisicp_core.registration as registration
 from frisicp_bench import script
 from frisicp_bench.datasets import default_data_dir
+from frisicp_bench.neighbours import counting_queries, neighbours_class
+from frisicp_core import NearestNeighbors, bumpy_surface, register
 
 ROOT = Path(__file__).resolve().parents[2]
 SCRIPT = str(ROOT / "benchmarks" / "example.py")
@@ -49,3 +53,33 @@ def test_missing_data_is_a_skip_that_names_the_file(
         f"example: skipped, no data: {tmp_path / 'bunny' / 'bun000.ply'} is missing"
         in capsys.readouterr().err
     )
+
+
+def test_the_core_builds_its_trees_as_the_class_put_in_its_place_for_the_block() -> None:
+    built: list[NearestNeighbors] = []
+
+    class Recording(NearestNeighbors):
+        def __init__(self, points: np.ndarray, backend: str = "auto") -> None:
+            super().__init__(points, backend)
+            built.append(self)
+
+    data, model = 1.3 * bumpy_surface(300, seed=1), bumpy_surface(250, seed=0)
+    plain = register(data, model)
+    with neighbours_class(Recording):
+        recorded = register(data, model)
+    assert len(built) >= 2  # a data and a model tree at least
+    assert registration.NearestNeighbors is NearestNeighbors  # restored
+    np.testing.assert_array_equal(recorded.similarity.matrix(), plain.similarity.matrix())
+
+
+def test_counting_queries_counts_query_points_and_resets_on_reading() -> None:
+    data, model = 1.3 * bumpy_surface(300, seed=1), bumpy_surface(250, seed=0)
+    with counting_queries() as queried:
+        register(data, model)
+        first = queried()
+        assert queried() == 0
+        NearestNeighbors(model).query(data[:10])  # built outside the core: not replaced, not counted
+        assert queried() == 0
+        registration.NearestNeighbors(model).query(data[:10])
+        assert queried() == 10
+    assert first >= data.shape[0] + model.shape[0]  # at least one full bidirectional pass
