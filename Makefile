@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo test lint config bench bench-quick bench-paper bench-paper-quick bench-partial bench-node bench-bag clean
+.PHONY: setup demo test lint config bench bench-smoke bench-paper bench-paper-quick bench-partial bench-node bench-bag clean
 
 $(STAMP): setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
@@ -37,6 +37,17 @@ config: $(STAMP)
 # when installed. One OpenMP thread, as the node and the bag workers run.
 bench: $(STAMP)
 	OMP_NUM_THREADS=1 $(BIN)/python benchmarks/core_speed.py
+
+# Every script in benchmarks/ once with --quick: seconds each, reports under build/ (docs/ keeps
+# the full runs' figures), so a script that no longer runs against today's code fails here (CI).
+# A script lacking its data or an optional package (ROS, Open3D) says so and skips that part.
+bench-smoke: $(STAMP)
+	@mkdir -p build/bench-smoke; for script in benchmarks/*.py; do \
+	  name=$$(basename $$script .py); log=build/bench-smoke/$$name.log; start=$$(date +%s); \
+	  if OMP_NUM_THREADS=1 $(BIN)/python $$script --quick > $$log 2>&1; then \
+	    echo "ok   $$name ($$(( $$(date +%s) - start )) s)"; grep -h "skipped" $$log || true; \
+	  else cat $$log; echo "FAIL $$name (whole output above, and in $$log)"; exit 1; fi; \
+	done
 
 # The paper's experiments on ../shared/data -> docs/benchmarks/ (tables, JSON, figures).
 # One thread per method: on a shared 2-core machine OpenMP's idle-waiting threads make

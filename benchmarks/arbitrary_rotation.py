@@ -8,8 +8,9 @@ in 2-D, Haar-uniform in 3-D), the bench's shift (10 % of the model's diagonal) a
 about the model's centroid. Scored like ``frisicp bench`` (rotation < 1 deg, scale < 1 %,
 translation < 0.5 %), default ``RegistrationConfig()``, one OpenMP thread.
 
-Usage: python benchmarks/arbitrary_rotation.py [--seed 0] [--out docs/arbitrary_rotation.md]
-Exits 0 without measuring when ../shared/data is absent, saying so.
+Usage: python benchmarks/arbitrary_rotation.py [--seed 0] [--data DIR] [--out docs/arbitrary_rotation.md]
+       python benchmarks/arbitrary_rotation.py --quick   # apple and the bunny at 2 scales -> build/
+Exits 0 without measuring when the data folder is absent, saying so.
 """
 
 from __future__ import annotations
@@ -18,24 +19,21 @@ import os
 
 os.environ["OMP_NUM_THREADS"] = "1"  # before numpy and pykdtree load
 
-import argparse
 import statistics
 import sys
 import zlib
-from pathlib import Path
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from frisicp_bench import script
 from frisicp_bench.cases import PAPER_SCALES, TRANSLATION_FRACTION, Family
-from frisicp_bench.datasets import DataMissingError
 from frisicp_bench.families import SHAPE_CLASSES, bunny_self_family, self_contour_family
 from frisicp_bench.metrics import pose_errors
-from frisicp_bench.report import case_record, provenance, write_report
+from frisicp_bench.report import case_record, write_report
 from frisicp_core import RegistrationConfig, Similarity, register, rotation_angle
 
-ROOT = Path(__file__).resolve().parents[1]
-DATA_DIR = Path(os.environ.get("FRISICP_DATA") or ROOT.parent / "shared" / "data")
+TITLE = "Full overlap at any rotation, default config"
 
 
 def any_rotation(dim: int, rng: np.random.Generator) -> np.ndarray:
@@ -55,20 +53,19 @@ def perturbation(family: Family, scale: float, seed: int) -> Similarity:
     return Similarity.about(centre, scale, rotation, shift)
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "arbitrary_rotation.md")
-    args = parser.parse_args()
-    try:
-        families = [self_contour_family(DATA_DIR, c) for c in SHAPE_CLASSES] + [bunny_self_family(DATA_DIR)]
-    except DataMissingError as err:
-        print(f"arbitrary_rotation: skipped, no data: {err}", file=sys.stderr)
+def main(argv: list[str] | None = None) -> int:
+    quick = "the apple and the bunny at 2 scales"
+    args = script.parse(script.parser(__file__, __doc__, quick, data=True, seed=True, report=True), argv)
+    shapes = SHAPE_CLASSES[:1] if args.quick else SHAPE_CLASSES
+    families = script.load_data(
+        args, lambda data: [self_contour_family(data, c) for c in shapes] + [bunny_self_family(data)]
+    )
+    if families is None:
         return 0
     rows, records = [], []
     for family in families:
         outcomes = []
-        for scale in PAPER_SCALES:
+        for scale in script.SMOKE_SCALES if args.quick else PAPER_SCALES:
             g = perturbation(family, scale, args.seed)
             data = g.apply(family.data)
             result = register(data, family.model, RegistrationConfig())
@@ -83,25 +80,20 @@ def main() -> int:
                 flush=True,
             )
         rows.append(
-            f"| {family.name} | {sum(r['success'] for r in outcomes)}/{len(outcomes)} | "
-            f"{max(r['rotation_deg'] for r in outcomes):.2g} | {100 * max(r['scale_error'] for r in outcomes):.2g} | "
-            f"{100 * max(r['translation_error'] for r in outcomes):.2g} | "
-            f"{sum(bool(r['reliable']) for r in outcomes)} | {statistics.median(r['seconds'] for r in outcomes):.3f} |"
+            [
+                family.name,
+                f"{sum(r['success'] for r in outcomes)}/{len(outcomes)}",
+                f"{max(r['rotation_deg'] for r in outcomes):.2g}",
+                f"{100 * max(r['scale_error'] for r in outcomes):.2g}",
+                f"{100 * max(r['translation_error'] for r in outcomes):.2g}",
+                sum(bool(r["reliable"]) for r in outcomes),
+                f"{statistics.median(r['seconds'] for r in outcomes):.3f}",
+            ]
         )
-    command = "python benchmarks/arbitrary_rotation.py" + (f" --seed {args.seed}" if args.seed else "")
-    lines = [
-        "# Full overlap at any rotation, default config",
-        "",
-        provenance(command),
-        "",
-        f"**{sum(r['success'] for r in records)}/{len(records)} strict successes.**",
-        "",
-        "| family | success | worst rotation error (deg) | worst scale error (%) | worst translation error (%) | reliable | median s |",
-        "|---|---|---|---|---|---|---|",
-        *rows,
-        "",
-    ]
-    write_report(args.out, lines, command, records)
+    header = ["family", "success", "worst rotation error (deg)", "worst scale error (%)"]
+    header += ["worst translation error (%)", "reliable", "median s"]
+    summary = f"**{sum(r['success'] for r in records)}/{len(records)} strict successes.**"
+    write_report(args.out, TITLE, script.command_line(args), summary, (header, rows), records)
     return 0
 
 

@@ -10,11 +10,11 @@ JSONL and result bag writing) with --max-points 0 so every point is registered.
 
     python benchmarks/bag_throughput.py                 # 200 pairs, the issue's setting
     python benchmarks/bag_throughput.py --pairs 20      # a quick look
+    python benchmarks/bag_throughput.py --quick         # 4 pairs of 2,000-point clouds: a smoke run
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import os
 import platform
@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 from rosbags.rosbag2 import StoragePlugin, Writer
 
+from frisicp_bench import script
 from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface
 from frisicp_ros.stream.outputs import rosbags_message_types
 from frisicp_ros.stream.pointcloud2 import points_to_parts
@@ -105,14 +106,13 @@ def run(bag: Path, jobs: int, workdir: Path, env_extra: dict[str, str]) -> dict[
     }
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
-    )
+def main(argv: list[str] | None = None) -> int:
+    parser = script.parser(__file__, __doc__, "4 pairs of 2,000-point clouds", json_out=True)
     parser.add_argument("--pairs", type=int, default=200)
     parser.add_argument("--points", type=int, default=30000)
-    parser.add_argument("--json", type=Path, help="also write the figures here")
-    args = parser.parse_args()
+    args = script.parse(parser, argv)
+    if args.quick:
+        args.pairs, args.points = 4, 2000
     cores = str(os.cpu_count() or 2)
     with tempfile.TemporaryDirectory() as tmp:
         workdir = Path(tmp)
@@ -142,8 +142,7 @@ def main() -> int:
         f"--jobs 2 with {cores} OMP threads per worker: {runs[3]['pairs_per_second'] / single['pairs_per_second']:.2f}x"
     )
     print(f"time outside frisicp_core.register at --jobs 1: {100 * outside:.1f} %")
-    if args.json:
-        args.json.write_text(json.dumps({"runs": runs, "outside_core_share": outside}, indent=2))
+    script.write_json(args.json, {"runs": runs, "outside_core_share": outside})
     return 0
 
 

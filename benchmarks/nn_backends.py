@@ -9,7 +9,7 @@ Sections (``--sections``, default all):
   node benchmark's closed surface), and their 1,000 and 4,472 point levels; queries aligned
   (the data on the model, as in most iterations) and misaligned (a far-off pose, as in the
   first iterations of a cold start);
-  (b) the Stanford bunny (35,947 points; skipped with a message when ../shared/data is absent);
+  (b) the Stanford bunny (35,947 points; skipped with a message when the data folder lacks it);
   (c) 2-D contours of 2,000 and 5,000 points.
   With 1 thread and with 2 threads where the library allows. Candidates are interleaved
   within every repeat (rotating order) and the table gives medians and the ratio
@@ -19,20 +19,26 @@ Sections (``--sections``, default all):
   ties of equal distance are errors).
 * ``register``: ``frisicp_core.register`` itself, with its NearestNeighbors replaced by each
   exact candidate (1 thread, as the node runs): the node's workload cold and warm, the bunny.
+  The replacement is a subclass of the public ``NearestNeighbors`` that answers its whole
+  contract (``query``, ``query_k``, ``spacing``) with the candidate, put in the core's place by
+  ``frisicp_bench.neighbours`` (the core has no hook for it).
 * ``split``: how much of a ``register`` call is tree building vs querying (pykdtree).
 * ``downsample``: capping a 100k-point cloud to 20k random points, and voxel-grid
   down-sampling it, in numpy (and in small_gicp / kiss-icp for reference).
 
+(The ``register`` and ``split`` variants with every level's points put in Morton order are gone:
+``register`` now puts scattered clouds in that order itself, ``frisicp_core.sampling.in_spatial_order``;
+the ``nn`` section still measures what the order is worth to the queries.)
+
 Usage: python benchmarks/nn_backends.py [--repeats 7] [--sections nn,register,split,downsample]
-                                        [--threads 1,2] [--json out.json]
+                                        [--threads 1,2] [--data DIR] [--json out.json]
+       python benchmarks/nn_backends.py --quick   # every section once, on clouds of 3,000 points
 """
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import importlib.metadata
-import json
 import os
 import platform
 import statistics
@@ -47,13 +53,27 @@ import numpy as np
 from scipy.spatial import KDTree, cKDTree
 from threadpoolctl import threadpool_limits
 
-import frisicp_core.registration as registration_module
+from frisicp_bench import script
+from frisicp_bench.neighbours import neighbours_class
+from frisicp_bench.report import markdown_table
 from frisicp_core import RegistrationConfig, Similarity, bumpy_surface, closed_contour, register
+from frisicp_core.io import read_points
 from frisicp_core.kdtree import NearestNeighbors
-from frisicp_core.sampling import downsample, level_sizes
+from frisicp_core.sampling import downsample, level_sizes, spatial_order
+from frisicp_core.similarity import axis_angle_rotation
 
-ROOT = Path(__file__).resolve().parents[1]
-BUNNY = ROOT.parent / "shared" / "data" / "bunny" / "bun_zipper.ply"
+
+@dataclass(frozen=True)
+class Sizes:
+    """Point counts of the workloads: the full run's, or (``QUICK``) a smoke run's."""
+
+    scan: int = 100_000  # a simulated scan or surface sample, before the cap
+    cap: int = 20_000  # the node's max_points
+    contours: tuple[int, ...] = (2000, 5000)
+    bunny: int | None = None  # the bunny's points kept (None: all 35,947)
+
+
+QUICK = Sizes(scan=10_000, cap=3000, contours=(1000,), bunny=3000)
 
 Tree = object
 BRUTE_FORCE_MAX = 5000  # faiss' exact index is O(n m): timed on the small sets only (20k: ~1.5 s)
@@ -61,14 +81,15 @@ QueryResult = tuple[np.ndarray, np.ndarray]
 
 
 # ---------------------------------------------------------------------------------------------
-# Candidates: build(points, threads) -> tree; query(tree, queries, threads) -> (d2 f64, idx i64)
+# Candidates: build(points, threads) -> tree; query(tree, queries, threads, k=1) -> (d2 f64, idx
+# i64): (n,) arrays for k = 1, (n, k) arrays, nearest first, for k > 1.
 
 
 @dataclass
 class Candidate:
     name: str
     build: Callable[[np.ndarray, int], Tree]
-    query: Callable[[Tree, np.ndarray, int], QueryResult]
+    query: Callable[..., QueryResult]
     exact: bool = True
     threaded: bool = True
     dims: tuple[int, ...] = (2, 3)
@@ -83,8 +104,8 @@ def _pykdtree(dtype: type) -> Candidate:
     def build(points: np.ndarray, threads: int) -> Tree:
         return PyKDTree(np.ascontiguousarray(points, dtype=dtype), leafsize=16)
 
-    def query(tree: Tree, queries: np.ndarray, threads: int) -> QueryResult:
-        d2, idx = tree.query(np.ascontiguousarray(queries, dtype=dtype), k=1, sqr_dists=True)
+    def query(tree: Tree, queries: np.ndarray, threads: int, k: int = 1) -> QueryResult:
+        d2, idx = tree.query(np.ascontiguousarray(queries, dtype=dtype), k=k, sqr_dists=True)
         return d2.astype(np.float64), idx.astype(np.int64)
 
     name = "pykdtree" if dtype is np.float64 else "pykdtree-f32"
@@ -92,10 +113,15 @@ def _pykdtree(dtype: type) -> Candidate:
     return Candidate(name, build, query, exact=dtype is np.float64, note=note)
 
 
-def _scipy_query(tree: Tree, queries: np.ndarray, threads: int) -> QueryResult:
+def _scipy_query(tree: Tree, queries: np.ndarray, threads: int, k: int = 1) -> QueryResult:
     """scipy's cKDTree and KDTree answer alike: squared distances, indices."""
-    d, idx = tree.query(queries, k=1, workers=threads)
+    d, idx = tree.query(queries, k=k, workers=threads)
     return d * d, idx
+
+
+def _columns(d2: np.ndarray, idx: np.ndarray, k: int) -> QueryResult:
+    """(n, k) answers as the contract has them: the first column alone for k = 1."""
+    return (d2[:, 0], idx[:, 0]) if k == 1 else (d2, idx)
 
 
 def _ckdtree() -> Candidate:
@@ -120,12 +146,14 @@ def _small_gicp() -> Candidate:
             points = np.column_stack((points, np.zeros(points.shape[0])))
         return small_gicp.KdTree(np.ascontiguousarray(points, dtype=np.float64), num_threads=threads)
 
-    def query(tree: Tree, queries: np.ndarray, threads: int) -> QueryResult:
+    def query(tree: Tree, queries: np.ndarray, threads: int, k: int = 1) -> QueryResult:
         if queries.shape[1] == 2:
             queries = np.column_stack((queries, np.zeros(queries.shape[0])))
-        idx, d2 = tree.batch_nearest_neighbor_search(
-            np.ascontiguousarray(queries, dtype=np.float64), num_threads=threads
-        )
+        queries = np.ascontiguousarray(queries, dtype=np.float64)
+        if k > 1:
+            idx, d2 = tree.batch_knn_search(queries, k, num_threads=threads)
+            return np.asarray(d2, dtype=np.float64), np.asarray(idx, dtype=np.int64)
+        idx, d2 = tree.batch_nearest_neighbor_search(queries, num_threads=threads)
         # The binding returns Python lists (not arrays, despite its docstring): converting is
         # part of the cost.
         return np.asarray(d2, dtype=np.float64), np.asarray(idx, dtype=np.int64)
@@ -141,10 +169,10 @@ def _pynanoflann() -> Candidate:
         tree.fit(np.ascontiguousarray(points, dtype=np.float64))
         return tree
 
-    def query(tree: Tree, queries: np.ndarray, threads: int) -> QueryResult:
-        d, idx = tree.kneighbors(np.ascontiguousarray(queries, dtype=np.float64), 1, n_jobs=threads)
-        d = d[:, 0]
-        return d * d, idx[:, 0].astype(np.int64)  # it takes the square root of nanoflann's d^2
+    def query(tree: Tree, queries: np.ndarray, threads: int, k: int = 1) -> QueryResult:
+        d, idx = tree.kneighbors(np.ascontiguousarray(queries, dtype=np.float64), k, n_jobs=threads)
+        # it takes the square root of nanoflann's d^2
+        return _columns(d * d, idx.astype(np.int64), k)
 
     return Candidate("pynanoflann", build, query)
 
@@ -157,9 +185,9 @@ def _napf() -> Candidate:
             np.ascontiguousarray(points, dtype=np.float64), metric=2, leaf_size=10, nthread=threads
         )
 
-    def query(tree: Tree, queries: np.ndarray, threads: int) -> QueryResult:
-        d2, idx = tree.knn_search(np.ascontiguousarray(queries, dtype=np.float64), 1, nthread=threads)
-        return d2[:, 0], idx[:, 0].astype(np.int64)
+    def query(tree: Tree, queries: np.ndarray, threads: int, k: int = 1) -> QueryResult:
+        d2, idx = tree.knn_search(np.ascontiguousarray(queries, dtype=np.float64), k, nthread=threads)
+        return _columns(d2, idx.astype(np.int64), k)
 
     return Candidate("napf", build, query)
 
@@ -170,10 +198,9 @@ def _sklearn() -> Candidate:
     def build(points: np.ndarray, threads: int) -> Tree:
         return SkKDTree(points, leaf_size=16)
 
-    def query(tree: Tree, queries: np.ndarray, threads: int) -> QueryResult:
-        d, idx = tree.query(queries, k=1)
-        d = d[:, 0]
-        return d * d, idx[:, 0].astype(np.int64)
+    def query(tree: Tree, queries: np.ndarray, threads: int, k: int = 1) -> QueryResult:
+        d, idx = tree.query(queries, k=k)
+        return _columns(d * d, idx.astype(np.int64), k)
 
     return Candidate("sklearn-KDTree", build, query, threaded=False, note="single-threaded queries")
 
@@ -187,10 +214,10 @@ def _faiss() -> Candidate:
         index.add(np.ascontiguousarray(points, dtype=np.float32))
         return index
 
-    def query(tree: Tree, queries: np.ndarray, threads: int) -> QueryResult:
+    def query(tree: Tree, queries: np.ndarray, threads: int, k: int = 1) -> QueryResult:
         faiss.omp_set_num_threads(threads)
-        d2, idx = tree.search(np.ascontiguousarray(queries, dtype=np.float32), 1)
-        return d2[:, 0].astype(np.float64), idx[:, 0].astype(np.int64)
+        d2, idx = tree.search(np.ascontiguousarray(queries, dtype=np.float32), k)
+        return _columns(d2.astype(np.float64), idx.astype(np.int64), k)
 
     return Candidate(
         "faiss-FlatL2",
@@ -227,10 +254,7 @@ def candidates() -> tuple[list[Candidate], list[str]]:
 
 
 def rotation(axis: tuple[float, float, float], degrees: float) -> np.ndarray:
-    k = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
-    skew = np.array([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
-    a = np.deg2rad(degrees)
-    return np.eye(3) + np.sin(a) * skew + (1 - np.cos(a)) * skew @ skew
+    return axis_angle_rotation(axis, np.deg2rad(degrees))
 
 
 def rotation_2d(degrees: float) -> np.ndarray:
@@ -287,43 +311,6 @@ def lidar_scan(n: int, sensor: np.ndarray, yaw_deg: float, seed: int) -> np.ndar
     return points
 
 
-def _spread_bits(v: np.ndarray, dim: int) -> np.ndarray:
-    """Spread the low 21 (3-D) or 31 (2-D) bits of v so that ``dim`` codes interleave."""
-    v = v.astype(np.uint64)
-    if dim == 3:
-        for shift, mask in (
-            (32, 0x1F00000000FFFF),
-            (16, 0x1F0000FF0000FF),
-            (8, 0x100F00F00F00F00F),
-            (4, 0x10C30C30C30C30C3),
-            (2, 0x1249249249249249),
-        ):
-            v = (v | (v << np.uint64(shift))) & np.uint64(mask)
-    else:
-        for shift, mask in (
-            (16, 0x0000FFFF0000FFFF),
-            (8, 0x00FF00FF00FF00FF),
-            (4, 0x0F0F0F0F0F0F0F0F),
-            (2, 0x3333333333333333),
-            (1, 0x5555555555555555),
-        ):
-            v = (v | (v << np.uint64(shift))) & np.uint64(mask)
-    return v
-
-
-def morton_order(points: np.ndarray, bits: int = 10) -> np.ndarray:
-    """Permutation that puts points in Z-order (Morton order) on a 2^bits grid over their box."""
-    columns = range(points.shape[1])  # column-wise: a.min(axis=0) is slow on (n, 3) arrays
-    low = np.array([points[:, k].min() for k in columns])
-    span = float(max(points[:, k].max() - low[k] for k in columns)) or 1.0
-    cells = np.minimum(((points - low) * ((1 << bits) / span)).astype(np.int64), (1 << bits) - 1)
-    dim = points.shape[1]
-    code = np.zeros(points.shape[0], dtype=np.uint64)
-    for axis in range(dim):
-        code |= _spread_bits(cells[:, axis], dim) << np.uint64(axis)
-    return np.argsort(code, kind="stable")
-
-
 @dataclass
 class Workload:
     """A model (tree) and the data queried against it: aligned and misaligned."""
@@ -336,45 +323,53 @@ class Workload:
     extra: dict = field(default_factory=dict)
 
 
-def node_workloads() -> list[Workload]:
+def node_workloads(sizes: Sizes) -> list[Workload]:
     """(a) The node's clouds, each capped to 20k random points, at the three level sizes."""
     rng = np.random.default_rng(7)
     out = []
     # Lidar-like: two scans 1.5 m apart (model: the map scan; data: the new scan, already in the
     # map frame when aligned). Both are random 20k subsets of ~100k-point scans, like max_points.
-    model_full = lidar_scan(100_000, np.array([0.0, 0.0, 1.8]), 0.0, seed=1)
-    data_full = lidar_scan(100_000, np.array([1.5, 0.4, 1.8]), 3.0, seed=2)
+    model_full = lidar_scan(sizes.scan, np.array([0.0, 0.0, 1.8]), 0.0, seed=1)
+    data_full = lidar_scan(sizes.scan, np.array([1.5, 0.4, 1.8]), 3.0, seed=2)
     # Node-benchmark surface (benchmarks/node_latency.py): bumpy_surface clouds.
-    surf_model = bumpy_surface(100_000, seed=0)
-    surf_data = bumpy_surface(100_000, seed=1) + rng.normal(scale=0.002, size=(100_000, 3))
+    surf_model = bumpy_surface(sizes.scan, seed=0)
+    surf_data = bumpy_surface(sizes.scan, seed=1) + rng.normal(scale=0.002, size=(sizes.scan, 3))
     far3 = Similarity(1.3, rotation((0.2, 0.3, 1.0), 75.0), np.array([0.3, -0.2, 0.1]))
     for label, model_all, data_all, far in (
         ("lidar", model_full, data_full, Similarity(1.2, rotation((0.1, 0.1, 1.0), 60.0), [4.0, -3.0, 0.5])),
         ("surface", surf_model, surf_data, far3),
     ):
-        model20 = downsample(model_all, 20_000, rng)
-        data20 = downsample(data_all, 20_000, rng)
-        for size in level_sizes(20_000, 20_000, 3, 1000):
-            model = downsample(model20, size, rng)
-            data = downsample(data20, size, rng)
+        model_capped = downsample(model_all, sizes.cap, rng)
+        data_capped = downsample(data_all, sizes.cap, rng)
+        for size in level_sizes(sizes.cap, sizes.cap, 3, 1000):
+            model = downsample(model_capped, size, rng)
+            data = downsample(data_capped, size, rng)
             out.append(Workload("node", f"{label} {size}", model, data, far.apply(data)))
-        # The same 20k sets with model and data each in Morton order: what spatially coherent
-        # queries and tree points are worth (a real scan is ring-ordered, bumpy_surface is not).
-        model = model20[morton_order(model20)]
-        data = data20[morton_order(data20)]
-        out.append(Workload("order", f"{label} 20000 Morton-ordered", model, data, far.apply(data)))
+        # The same capped sets with model and data each in Morton order (the core's
+        # spatial_order): what spatially coherent queries and tree points are worth (a real scan
+        # is ring-ordered, bumpy_surface is not; register orders scattered clouds itself).
+        model = model_capped[spatial_order(model_capped)]
+        data = data_capped[spatial_order(data_capped)]
+        out.append(Workload("order", f"{label} {sizes.cap} Morton-ordered", model, data, far.apply(data)))
     return out
 
 
-def bunny_workloads() -> list[Workload]:
-    """(b) The bunny against a noisy copy; the registration's three level sizes."""
-    if not BUNNY.exists():
-        print(f"# bunny: {BUNNY} is absent; the bunny rows are skipped", file=sys.stderr)
-        return []
-    from frisicp_ros.cloud_files import read_points
+def read_bunny(data_dir: Path, sizes: Sizes) -> np.ndarray | None:
+    """The bunny reconstruction (metres; ``sizes.bunny`` random points of it), or None, saying so,
+    when the data folder lacks it."""
+    path = data_dir / "bunny" / "bun_zipper.ply"
+    if not path.exists():
+        print(f"# bunny: {path} is absent; the bunny rows are skipped", file=sys.stderr)
+        return None
+    bunny = read_points(path)
+    return bunny if sizes.bunny is None else downsample(bunny, sizes.bunny, np.random.default_rng(0))
 
+
+def bunny_workloads(bunny: np.ndarray | None) -> list[Workload]:
+    """(b) The bunny against a noisy copy; the registration's three level sizes."""
+    if bunny is None:
+        return []
     rng = np.random.default_rng(3)
-    bunny = read_points(BUNNY)
     spread = float(np.sqrt(((bunny - bunny.mean(0)) ** 2).sum(1).mean()))
     data_all = bunny + rng.normal(scale=0.002 * spread, size=bunny.shape)
     far = Similarity(0.6, rotation((0.3, 1.0, 0.2), 40.0), bunny.mean(0) * 0.3 + 0.05)
@@ -386,11 +381,11 @@ def bunny_workloads() -> list[Workload]:
     return out
 
 
-def contour_workloads() -> list[Workload]:
+def contour_workloads(sizes: Sizes) -> list[Workload]:
     """(c) 2-D closed contours: the data re-sampled at other angles, with noise."""
     rng = np.random.default_rng(5)
     out = []
-    for size in (2000, 5000):
+    for size in sizes.contours:
         model = closed_contour(size)
         shifted = closed_contour(size * 7)[3::7][:size]  # other samples of the same curve
         data = shifted + rng.normal(scale=0.002, size=shifted.shape)
@@ -635,107 +630,104 @@ def voxel_hash_recall(model: np.ndarray, queries: np.ndarray, voxel: float, cap:
 # register() with each backend
 
 
-class _Patched:
-    """A NearestNeighbors stand-in running one candidate (installed as registration's class)."""
+class CandidateNeighbors(NearestNeighbors):
+    """frisicp_core's NearestNeighbors contract answered by one candidate (``candidate``, set by
+    :func:`neighbours_of`): ``query``, ``query_k`` and ``spacing`` as the core defines them."""
 
-    candidate: Candidate
-    threads = 1
+    candidate: ClassVar[Candidate]
+    threads: ClassVar[int] = 1
 
     def __init__(self, points: np.ndarray, backend: str = "auto") -> None:
         self.points = np.ascontiguousarray(points, dtype=np.float64)
+        self.backend = self.candidate.name
         self._tree = self.candidate.build(self.points, self.threads)
+        self._spacing = None
 
     def query(self, queries: np.ndarray) -> QueryResult:
         return self.candidate.query(self._tree, queries, self.threads)
 
+    def query_k(self, queries: np.ndarray, k: int) -> QueryResult:
+        k = min(k, self.points.shape[0])
+        if k == 1:
+            d2, idx = self.query(queries)
+        else:
+            d2, idx = self.candidate.query(self._tree, queries, self.threads, k)
+        return d2.reshape(-1, k), idx.reshape(-1, k)
 
-@contextlib.contextmanager
-def nn_class(cls):
-    saved = registration_module.NearestNeighbors
-    registration_module.NearestNeighbors = cls
-    try:
-        yield
-    finally:
-        registration_module.NearestNeighbors = saved
+    def spacing(self, sample: int = 256) -> float:
+        """As NearestNeighbors.spacing: the median distance to the nearest other stored point,
+        over at most ``sample`` stored points spread evenly over the storage order."""
+        if self._spacing is None:
+            n = self.points.shape[0]
+            if n < 2:
+                self._spacing = 0.0
+            else:
+                d2, _ = self.query_k(self.points[:: max(1, n // sample)], 2)
+                self._spacing = float(np.sqrt(np.median(d2[:, 1])))
+        return self._spacing
 
 
-def register_cases() -> list[tuple[str, np.ndarray, np.ndarray, RegistrationConfig]]:
+def neighbours_of(candidate: Candidate) -> type[CandidateNeighbors]:
+    """The NearestNeighbors class that runs ``candidate``, for :func:`neighbours_class`."""
+    unanswered = sorted(
+        name
+        for name, value in vars(NearestNeighbors).items()
+        if callable(value) and not name.startswith("_") and name not in vars(CandidateNeighbors)
+    )
+    if unanswered:  # inherited, they would call the core's own tree: a wrong or failing answer
+        raise NotImplementedError(
+            f"CandidateNeighbors does not answer NearestNeighbors.{', '.join(unanswered)}"
+        )
+    return type(f"{candidate.name}Neighbors", (CandidateNeighbors,), {"candidate": candidate})
+
+
+def register_cases(
+    sizes: Sizes, bunny: np.ndarray | None
+) -> list[tuple[str, np.ndarray, np.ndarray, RegistrationConfig]]:
     rng = np.random.default_rng(11)
     truth = Similarity(1.3, rotation((0.0, 0.0, 1.0), 90.0), np.array([1.0, 2.0, 0.5]))  # node_latency.py's
-    model = downsample(bumpy_surface(100_000, seed=0), 20_000, rng)
-    data = truth.inverse().apply(downsample(bumpy_surface(100_000, seed=1), 20_000, rng))
+    model = downsample(bumpy_surface(sizes.scan, seed=0), sizes.cap, rng)
+    data = truth.inverse().apply(downsample(bumpy_surface(sizes.scan, seed=1), sizes.cap, rng))
     data += rng.normal(scale=0.002, size=data.shape)
     near = Similarity(1.3 * 1.01, truth.rotation @ rotation((1.0, 0.2, 0.1), 2.0), truth.translation + 0.02)
     # Lidar-like: a second scan 1.5 m away and yawed 3 degrees, in its own sensor frame.
     scan_pose = Similarity(1.0, rotation((0.0, 0.0, 1.0), 3.0), np.array([1.5, 0.4, 0.0]))
-    scan_model = downsample(lidar_scan(100_000, np.array([0.0, 0.0, 1.8]), 0.0, seed=1), 20_000, rng)
-    scan_data = downsample(lidar_scan(100_000, np.array([1.5, 0.4, 1.8]), 3.0, seed=2), 20_000, rng)
+    scan_model = downsample(lidar_scan(sizes.scan, np.array([0.0, 0.0, 1.8]), 0.0, seed=1), sizes.cap, rng)
+    scan_data = downsample(lidar_scan(sizes.scan, np.array([1.5, 0.4, 1.8]), 3.0, seed=2), sizes.cap, rng)
     scan_data = scan_pose.inverse().apply(scan_data)
     scan_near = Similarity(
         1.005, scan_pose.rotation @ rotation((0.1, 0.2, 1.0), 1.0), scan_pose.translation + 0.1
     )
+    cap = f"{sizes.cap / 1000:g}k"
     cases = [
-        ("node 20k cold", data, model, RegistrationConfig()),
-        ("node 20k warm", data, model, RegistrationConfig(initial=near)),
-        ("lidar 20k warm", scan_data, scan_model, RegistrationConfig(initial=scan_near)),
+        (f"node {cap} cold", data, model, RegistrationConfig()),
+        (f"node {cap} warm", data, model, RegistrationConfig(initial=near)),
+        (f"lidar {cap} warm", scan_data, scan_model, RegistrationConfig(initial=scan_near)),
     ]
-    if BUNNY.exists():
-        from frisicp_ros.cloud_files import read_points
-
-        bunny = read_points(BUNNY)
+    if bunny is not None:
         forward = Similarity(0.5, rotation((0.3, 1.0, 0.2), 10.0), np.array([0.01, -0.02, 0.015]))
         cases.append(("bunny cold (s=0.5)", forward.apply(bunny), bunny, RegistrationConfig()))
     return cases
 
 
-@contextlib.contextmanager
-def morton_levels(enabled: bool = True):
-    """register with every level's data and model put in Morton order before its trees are built.
-
-    The level's point sets are the same (only their order changes), so the iterations are the
-    same up to rounding; the queries of every iteration then come in a spatially coherent order.
-    The sorting is included in the time.
-    """
-    original = registration_module._Level.__dict__["build"]
-    if not enabled:
-        yield
-        return
-
-    def build(cls, data, model, bidirectional, backend):
-        return original.__func__(
-            cls, data[morton_order(data)], model[morton_order(model)], bidirectional, backend
-        )
-
-    registration_module._Level.build = classmethod(build)
-    try:
-        yield
-    finally:
-        registration_module._Level.build = original
-
-
-MORTON = ", levels Morton-ordered"
-
-
-def bench_register(cands: list[Candidate], repeats: int) -> list[dict]:
+def bench_register(cands: list[Candidate], repeats: int, cases: list) -> list[dict]:
     exact = [c for c in cands if (c.exact or c.name == "pykdtree-f32") and not c.name.startswith("faiss")]
-    variants = [(c.name, c, False) for c in exact]
-    variants += [(c.name + MORTON, c, True) for c in exact if c.name in ("pykdtree", "pynanoflann")]
+    variants = [(c.name, neighbours_of(c)) for c in exact]
     rows = []
-    for label, data, model, config in register_cases():
-        times: dict[str, list[float]] = {name: [] for name, _, _ in variants}
+    for label, data, model, config in cases:
+        times: dict[str, list[float]] = {name: [] for name, _ in variants}
         results = {}
         for rep in range(repeats):
             shift = rep % len(variants)
-            for name, cand, morton in variants[shift:] + variants[:shift]:
-                patched = type("Patched", (_Patched,), {"candidate": cand})
-                with nn_class(patched), morton_levels(morton):
+            for name, neighbours in variants[shift:] + variants[:shift]:
+                with neighbours_class(neighbours):
                     t, result = timed(
                         lambda data=data, model=model, config=config: register(data, model, config)
                     )
                 times[name].append(t)
                 results[name] = result
         base = statistics.median(times["pykdtree"])
-        for name, _, _ in variants:
+        for name, _ in variants:
             med = statistics.median(times[name])
             res = results[name]
             rows.append(
@@ -771,7 +763,7 @@ class _Timing(NearestNeighbors):
         start = time.process_time()
         super().__init__(points, backend)
         elapsed = time.process_time() - start
-        # registration builds the data tree first, then the model tree, for every level
+        # FRISICP's levels are bidirectional: each builds its data tree, then its model tree
         role = "data" if _Timing.builds % 2 == 0 else "model"
         _Timing.build_s[role] += elapsed
         _Timing.builds += 1
@@ -791,18 +783,13 @@ class _Timing(NearestNeighbors):
         cls.builds = 0
 
 
-def bench_split(repeats: int) -> list[dict]:
+def bench_split(repeats: int, cases: list) -> list[dict]:
     rows = []
-    cases = [
-        (label + suffix, data, model, config, bool(suffix))
-        for label, data, model, config in register_cases()
-        for suffix in ("", MORTON)
-    ]
-    for label, data, model, config, morton in cases:
+    for label, data, model, config in cases:
         samples = []
         for _ in range(repeats):
             _Timing.reset()
-            with nn_class(_Timing), morton_levels(morton):
+            with neighbours_class(_Timing):
                 t, result = timed(lambda data=data, model=model, config=config: register(data, model, config))
             samples.append(
                 dict(
@@ -879,31 +866,39 @@ def voxel_centroid(points: np.ndarray, voxel: float) -> np.ndarray:
 DENSE_GRID_MAX = 1 << 26  # cells: the owner table is 8 bytes a cell of virtual memory, touched sparsely
 
 
-def voxel_last_dense(points: np.ndarray, voxel: float) -> np.ndarray:
-    """One point per occupied voxel without sorting: scatter point numbers into a per-cell table.
+def dense_owners(points: np.ndarray, voxel: float) -> tuple[np.ndarray, np.ndarray] | None:
+    """Without sorting: scatter point numbers into a per-cell table, then read back for every
+    point the number its voxel's cell holds (the owner), with the point numbers; None for grids
+    over DENSE_GRID_MAX cells.
 
     With repeated indices a fancy assignment keeps the last write (numpy does so in practice, it
-    does not promise it; the point kept is "one of the voxel's points" either way). Only for
-    bounded grids (<= DENSE_GRID_MAX cells); otherwise use :func:`voxel_first`.
+    does not promise it; the owner is "one of the voxel's points" either way).
     """
     keys, cells = voxel_keys(points, voxel)
     if cells > DENSE_GRID_MAX:
-        return voxel_first(points, voxel)
+        return None
     order = np.arange(points.shape[0])
     owner = np.empty(cells, dtype=np.int64)
     owner[keys] = order
-    return points[owner[keys] == order]
+    return owner[keys], order
+
+
+def voxel_last_dense(points: np.ndarray, voxel: float) -> np.ndarray:
+    """One point per occupied voxel, its owner (:func:`dense_owners`; :func:`voxel_first` for
+    larger grids)."""
+    owners = dense_owners(points, voxel)
+    if owners is None:
+        return voxel_first(points, voxel)
+    owns, order = owners
+    return points[owns == order]
 
 
 def voxel_centroid_dense(points: np.ndarray, voxel: float) -> np.ndarray:
-    """Centroid per occupied voxel without sorting (as voxel_last_dense, then bincount)."""
-    keys, cells = voxel_keys(points, voxel)
-    if cells > DENSE_GRID_MAX:
+    """Centroid per occupied voxel without sorting (:func:`dense_owners`, then bincount)."""
+    owners = dense_owners(points, voxel)
+    if owners is None:
         return voxel_centroid(points, voxel)
-    order = np.arange(points.shape[0])
-    owner = np.empty(cells, dtype=np.int64)
-    owner[keys] = order
-    owns = owner[keys]
+    owns, order = owners
     head = owns == order
     slot = np.cumsum(head) - 1  # voxel number of each owning point
     inverse = slot[owns]
@@ -913,10 +908,47 @@ def voxel_centroid_dense(points: np.ndarray, voxel: float) -> np.ndarray:
     return sums / counts[:, None]
 
 
-def bench_downsample(repeats: int) -> list[dict]:
+VoxelMethod = Callable[[np.ndarray, float], np.ndarray]
+VOXEL_METHODS: list[tuple[str, VoxelMethod]] = [
+    ("keys only (fast)", lambda p, v: voxel_keys(p, v)[0]),
+    ("keys only (naive, .min(axis=0))", voxel_keys_naive),
+    ("first point, naive keys + np.unique(return_index)", lambda p, v: voxel_first(p, v, naive=True)),
+    ("first point, fast keys + np.unique(return_index)", voxel_first),
+    ("one point, dense owner table (no sort)", voxel_last_dense),
+    ("centroid, np.unique(inverse) + bincount", voxel_centroid),
+    ("centroid, dense owner table + bincount (no sort)", voxel_centroid_dense),
+]
+
+
+def library_voxel_methods() -> list[tuple[str, VoxelMethod]]:
+    """small_gicp's and kiss-icp's voxel grids (C++), where installed: for reference."""
+    found: list[tuple[str, VoxelMethod]] = []
+    with contextlib.suppress(ImportError):
+        import small_gicp
+
+        found.append(
+            (
+                "centroid, small_gicp.voxelgrid_sampling (1 thread, C++)",
+                lambda p, v: small_gicp.voxelgrid_sampling(p, v, 1).points(),
+            )
+        )
+    with contextlib.suppress(ImportError):
+        from kiss_icp.pybind import kiss_icp_pybind as kiss
+
+        found.append(
+            (
+                "one point, kiss-icp _voxel_down_sample (C++)",
+                lambda p, v: np.asarray(kiss._voxel_down_sample(kiss._Vector3dVector(p), v)),
+            )
+        )
+    return found
+
+
+def bench_downsample(repeats: int, sizes: Sizes) -> list[dict]:
     rng = np.random.default_rng(0)
-    scan = lidar_scan(100_000, np.array([0.0, 0.0, 1.8]), 0.0, seed=1)
-    surface = bumpy_surface(100_000, seed=0)
+    scan = lidar_scan(sizes.scan, np.array([0.0, 0.0, 1.8]), 0.0, seed=1)
+    surface = bumpy_surface(sizes.scan, seed=0)
+    cap = sizes.cap
     rows = []
 
     def add(label: str, cloud: str, action: Callable[[], np.ndarray]) -> None:
@@ -926,72 +958,28 @@ def bench_downsample(repeats: int) -> list[dict]:
             times.append(t)
         rows.append(dict(method=label, cloud=cloud, ms=statistics.median(times) * 1e3, points=len(out)))
 
-    for cloud, pts in (("lidar 100k", scan), ("surface 100k", surface)):
+    scanned = f"{sizes.scan / 1000:g}k"
+    for cloud, pts in ((f"lidar {scanned}", scan), (f"surface {scanned}", surface)):
         n = pts.shape[0]
         add(
             "Generator.choice(replace=False) + sort + take (sampling.downsample)",
             cloud,
-            lambda p=pts: downsample(p, 20_000, rng),
+            lambda p=pts: downsample(p, cap, rng),
         )
-        add("Generator.choice(replace=False) only", cloud, lambda n=n: rng.choice(n, 20_000, replace=False))
+        add("Generator.choice(replace=False) only", cloud, lambda n=n: rng.choice(n, cap, replace=False))
         add(
             "Generator.permutation(n)[:k] + sort + take",
             cloud,
-            lambda p=pts, n=n: p[np.sort(rng.permutation(n)[:20_000])],
+            lambda p=pts, n=n: p[np.sort(rng.permutation(n)[:cap])],
         )
         add(
             "random keys, argpartition + sort + take",
             cloud,
-            lambda p=pts, n=n: p[np.sort(np.argpartition(rng.random(n), 20_000)[:20_000])],
+            lambda p=pts, n=n: p[np.sort(np.argpartition(rng.random(n), cap)[:cap])],
         )
         for voxel in (0.15, 0.3) if cloud.startswith("lidar") else (0.02, 0.04):
-            add(f"voxel {voxel}: keys only (fast)", cloud, lambda p=pts, v=voxel: voxel_keys(p, v)[0])
-            add(
-                f"voxel {voxel}: keys only (naive, .min(axis=0))",
-                cloud,
-                lambda p=pts, v=voxel: voxel_keys_naive(p, v),
-            )
-            add(
-                f"voxel {voxel}: first point, naive keys + np.unique(return_index)",
-                cloud,
-                lambda p=pts, v=voxel: voxel_first(p, v, naive=True),
-            )
-            add(
-                f"voxel {voxel}: first point, fast keys + np.unique(return_index)",
-                cloud,
-                lambda p=pts, v=voxel: voxel_first(p, v),
-            )
-            add(
-                f"voxel {voxel}: one point, dense owner table (no sort)",
-                cloud,
-                lambda p=pts, v=voxel: voxel_last_dense(p, v),
-            )
-            add(
-                f"voxel {voxel}: centroid, np.unique(inverse) + bincount",
-                cloud,
-                lambda p=pts, v=voxel: voxel_centroid(p, v),
-            )
-            add(
-                f"voxel {voxel}: centroid, dense owner table + bincount (no sort)",
-                cloud,
-                lambda p=pts, v=voxel: voxel_centroid_dense(p, v),
-            )
-            with contextlib.suppress(ImportError):
-                import small_gicp
-
-                add(
-                    f"voxel {voxel}: centroid, small_gicp.voxelgrid_sampling (1 thread, C++)",
-                    cloud,
-                    lambda p=pts, v=voxel: small_gicp.voxelgrid_sampling(p, v, 1).points(),
-                )
-            with contextlib.suppress(ImportError):
-                from kiss_icp.pybind import kiss_icp_pybind as kiss
-
-                add(
-                    f"voxel {voxel}: one point, kiss-icp _voxel_down_sample (C++)",
-                    cloud,
-                    lambda p=pts, v=voxel: np.asarray(kiss._voxel_down_sample(kiss._Vector3dVector(p), v)),
-                )
+            for label, method in VOXEL_METHODS + library_voxel_methods():
+                add(f"voxel {voxel}: {label}", cloud, lambda p=pts, v=voxel, m=method: m(p, v))
     return rows
 
 
@@ -1021,10 +1009,7 @@ def versions() -> dict[str, str]:
 
 def table(title: str, header: list[str], body: list[list[object]]) -> None:
     print(f"\n## {title}\n")
-    print("| " + " | ".join(header) + " |")
-    print("|" + "---|" * len(header))
-    for row in body:
-        print("| " + " | ".join(str(cell) for cell in row) + " |")
+    print("\n".join(markdown_table(header, body)))
 
 
 def exactness(r: dict) -> str:
@@ -1093,15 +1078,17 @@ def print_nn_section(threads: int, repeats: int, rows: list[dict], mix: list[dic
         )
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--repeats", type=int, default=7)
+def main(argv: list[str] | None = None) -> int:
+    quick = "every section once, 1 thread, on clouds of 3,000 points (the bunny's too)"
+    parser = script.parser(__file__, __doc__, quick, data=True, repeats=7, json_out=True)
     parser.add_argument("--sections", default="nn,register,split,downsample")
     parser.add_argument("--threads", default="1,2")
-    parser.add_argument("--json", type=Path)
-    args = parser.parse_args()
+    args = script.parse(parser, argv)
     sections = set(args.sections.split(","))
-    threads_list = [int(t) for t in args.threads.split(",")]
+    threads_list = [1] if args.quick else [int(t) for t in args.threads.split(",")]
+    repeats = 1 if args.quick else args.repeats
+    sizes = QUICK if args.quick else Sizes()
+    bunny = read_bunny(args.data, sizes)
     report: dict = {"machine": f"{platform.machine()}, {os.cpu_count()} cores", "versions": versions()}
     print(f"# {report['machine']}; OMP_NUM_THREADS={os.environ.get('OMP_NUM_THREADS', 'unset')}")
     print("# " + ", ".join(f"{k} {v}" for k, v in report["versions"].items()))
@@ -1110,23 +1097,24 @@ def main() -> int:
         print(f"# {line}")
 
     if "nn" in sections:
-        workloads = node_workloads() + bunny_workloads() + contour_workloads()
+        workloads = node_workloads(sizes) + bunny_workloads(bunny) + contour_workloads(sizes)
         report["nn"], report["mix"], report["kiss"] = [], [], []
         for threads in threads_list:
             with threadpool_limits(limits=threads):
-                rows = bench_nn(cands, workloads, threads, args.repeats)
+                rows = bench_nn(cands, workloads, threads, repeats)
                 kiss = kiss_icp_voxel_hash(
-                    [w for w in workloads if w.group in ("node", "bunny")], threads, args.repeats
+                    [w for w in workloads if w.group in ("node", "bunny")], threads, repeats
                 )
             mix = registration_mix(rows)
             report["nn"] += rows
             report["kiss"] += kiss
             report["mix"] += mix
-            print_nn_section(threads, args.repeats, rows, mix, kiss)
+            print_nn_section(threads, repeats, rows, mix, kiss)
 
+    cases = register_cases(sizes, bunny) if sections & {"register", "split"} else []
     if "register" in sections:
         with threadpool_limits(limits=1):
-            rows = bench_register(cands, args.repeats)
+            rows = bench_register(cands, repeats, cases)
         report["register"] = rows
         table(
             "register() with each backend, 1 thread (process CPU time, medians); "
@@ -1147,7 +1135,7 @@ def main() -> int:
 
     if "split" in sections:
         with threadpool_limits(limits=1):
-            rows = bench_split(args.repeats)
+            rows = bench_split(repeats, cases)
         report["split"] = rows
         table(
             "Where register's time goes (frisicp_core's NearestNeighbors, 1 thread, "
@@ -1181,16 +1169,15 @@ def main() -> int:
 
     if "downsample" in sections:
         with threadpool_limits(limits=1):
-            rows = bench_downsample(max(args.repeats, 9))
+            rows = bench_downsample(1 if args.quick else max(repeats, 9), sizes)
         report["downsample"] = rows
         table(
-            "Down-sampling a 100k-point cloud, 1 thread (process CPU time, medians)",
+            f"Down-sampling a {sizes.scan // 1000}k-point cloud, 1 thread (process CPU time, medians)",
             ["cloud", "method", "ms", "points out"],
             [[r["cloud"], r["method"], f"{r['ms']:.2f}", r["points"]] for r in rows],
         )
 
-    if args.json:
-        args.json.write_text(json.dumps(report, indent=1) + "\n")
+    script.write_json(args.json, report)
     return 0
 
 

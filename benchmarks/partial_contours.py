@@ -13,8 +13,9 @@ Why it is hard: a planar curve's arc often fits along itself at another place an
 as well as at its own (a smooth bend looks like a larger or smaller piece of a similar bend), so
 the estimated overlap and the scale can agree on a wrong pose.
 
-Usage: python benchmarks/partial_contours.py [--seed 0] [--out docs/partial_contours.md]
-Exits 0 without measuring when ../shared/data is absent, saying so.
+Usage: python benchmarks/partial_contours.py [--seed 0] [--data DIR] [--out docs/partial_contours.md]
+       python benchmarks/partial_contours.py --quick   # the apple's 40 % arc at 2 scales -> build/
+Exits 0 without measuring when the data folder is absent, saying so.
 """
 
 from __future__ import annotations
@@ -23,22 +24,20 @@ import os
 
 os.environ["OMP_NUM_THREADS"] = "1"  # before numpy and pykdtree load
 
-import argparse
 import sys
 import zlib
-from pathlib import Path
 
 import numpy as np
 
+from frisicp_bench import script
 from frisicp_bench.cases import PAPER_SCALES
-from frisicp_bench.datasets import DataMissingError, silhouette_contour
+from frisicp_bench.datasets import silhouette_contour
 from frisicp_bench.families import SHAPE_CLASSES
 from frisicp_bench.metrics import model_size, pose_errors
-from frisicp_bench.report import case_record, provenance, write_report
+from frisicp_bench.report import case_record, write_report, wrong_but_reliable
 from frisicp_core import RegistrationConfig, Similarity, register
 
-ROOT = Path(__file__).resolve().parents[1]
-DATA_DIR = Path(os.environ.get("FRISICP_DATA") or ROOT.parent / "shared" / "data")
+TITLE = "2-D partial overlap: an arc of a contour and the whole outline, default config"
 SHARES = (0.4, 0.6)
 DIRECTIONS = ("piece→full", "full→piece")
 TURN_DEG = 10.0
@@ -61,19 +60,19 @@ def perturbation(data: np.ndarray, model: np.ndarray, scale: float, rng: np.rand
     return Similarity.about(centre, scale, rotation, shift)
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "partial_contours.md")
-    args = parser.parse_args()
-    try:
-        contours = {name: silhouette_contour(DATA_DIR, name, 1) for name in SHAPE_CLASSES}
-    except DataMissingError as err:
-        print(f"partial_contours: skipped, no data: {err}", file=sys.stderr)
+def main(argv: list[str] | None = None) -> int:
+    quick = "the apple's 40 % arc, both directions, at 2 scales"
+    args = script.parse(script.parser(__file__, __doc__, quick, data=True, seed=True, report=True), argv)
+    shapes = SHAPE_CLASSES[:1] if args.quick else SHAPE_CLASSES
+    shares = SHARES[:1] if args.quick else SHARES
+    contours = script.load_data(
+        args, lambda data: {name: silhouette_contour(data, name, 1) for name in shapes}
+    )
+    if contours is None:
         return 0
     records = []
     for name, contour in contours.items():
-        for share in SHARES:
+        for share in shares:
             piece = arc(
                 contour,
                 share,
@@ -81,7 +80,7 @@ def main() -> int:
             )
             for direction in DIRECTIONS:
                 data, model = (piece, contour) if direction == "piece→full" else (contour, piece)
-                for scale in PAPER_SCALES:
+                for scale in script.SMOKE_SCALES if args.quick else PAPER_SCALES:
                     rng = np.random.default_rng(
                         [
                             args.seed,
@@ -105,31 +104,21 @@ def main() -> int:
                     )
     rows = []
     for name in contours:
-        for share in SHARES:
+        for share in shares:
             cells = []
             for direction in DIRECTIONS:
                 group = [
                     r for r in records if (r["shape"], r["share"], r["direction"]) == (name, share, direction)
                 ]
-                wrong_reliable = sum(bool(r["reliable"]) and not r["success"] for r in group)
-                cells.append(f"{sum(r['success'] for r in group)}/{len(group)} ({wrong_reliable})")
-            rows.append(f"| {name} | {share:.0%} | {' | '.join(cells)} |")
+                cells.append(f"{sum(r['success'] for r in group)}/{len(group)} ({wrong_but_reliable(group)})")
+            rows.append([name, f"{share:.0%}", *cells])
     successes = sum(r["success"] for r in records)
-    wrong_reliable = sum(bool(r["reliable"]) and not r["success"] for r in records)
-    command = "python benchmarks/partial_contours.py" + (f" --seed {args.seed}" if args.seed else "")
-    lines = [
-        "# 2-D partial overlap: an arc of a contour and the whole outline, default config",
-        "",
-        provenance(command),
-        "",
-        f"**{successes}/{len(records)} strict successes**; {wrong_reliable} of the failures were called reliable.",
-        "",
-        "| shape | arc | piece→full: success (wrong but reliable) | full→piece: success (wrong but reliable) |",
-        "|---|---|---|---|",
-        *rows,
-        "",
-    ]
-    write_report(args.out, lines, command, records)
+    summary = (
+        f"**{successes}/{len(records)} strict successes**; {wrong_but_reliable(records)} of the failures were "
+        "called reliable."
+    )
+    header = ["shape", "arc", *(f"{d}: success (wrong but reliable)" for d in DIRECTIONS)]
+    write_report(args.out, TITLE, script.command_line(args), summary, (header, rows), records)
     return 0
 
 

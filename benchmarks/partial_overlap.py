@@ -51,12 +51,12 @@ Usage::
 
     python benchmarks/partial_overlap.py                 # everything, writes docs/partial_overlap.{md,json}
     python benchmarks/partial_overlap.py --jobs 2        # in 2 processes
-    python benchmarks/partial_overlap.py --quick         # 3 scales, first pair of each group -> build/
+    python benchmarks/partial_overlap.py --quick         # s = 1.5, first pair of each group -> build/
     python benchmarks/partial_overlap.py --only 'bun090→bun_zipper +outliers' --scales 2.9   # one case
     python benchmarks/partial_overlap.py --render docs/partial_overlap.json   # the report again, no registering
 
-Exits 0 without measuring when the data folder ($FRISICP_DATA, else ../shared/data beside the
-repository) is absent, saying so.
+Exits 0 without measuring when the data folder (``--data``, else $FRISICP_DATA, else
+../shared/data beside the repository) is absent, saying so.
 """
 
 from __future__ import annotations
@@ -66,7 +66,6 @@ import os
 # Before numpy, pykdtree and Open3D load: one thread per registration (workers inherit it).
 os.environ["OMP_NUM_THREADS"] = "1"
 
-import argparse
 import functools
 import json
 import math
@@ -86,6 +85,7 @@ from typing import Any
 import numpy as np
 import scipy
 
+from frisicp_bench import script
 from frisicp_bench.cases import PAPER_SCALES, Family, make_cases
 from frisicp_bench.datasets import bunny_points, scan_pose
 from frisicp_bench.families import scan_to_map_family
@@ -98,11 +98,11 @@ from frisicp_bench.metrics import (
     model_size,
     pose_errors,
 )
+from frisicp_bench.report import markdown_table
 from frisicp_core import NearestNeighbors, RegistrationConfig, Similarity, axis_angle_rotation, register
 from frisicp_core.similarity import FloatArray
 
 ROOT = Path(__file__).resolve().parents[1]
-DATA_DIR = Path(os.environ.get("FRISICP_DATA") or ROOT.parent / "shared" / "data")
 
 MAP = "bun_zipper"
 SCANS = ("bun090", "bun180", "bun270", "bun315")
@@ -110,7 +110,7 @@ ROTATION_DEG = 10.0
 SHIFT_FRACTION = 0.05  # of the model's diagonal
 OUTLIER_SHARE = 0.2  # of the corrupted cloud
 NOISE_FRACTION = 0.005  # per-coordinate sigma, of the model's diagonal
-QUICK_SCALES = (0.1, 1.5, 2.9)
+QUICK_SCALES = (1.5,)
 # "Overlap at the true pose": share of a set's points within this many point spacings (the
 # larger of the two sets' median nearest-neighbour distances) of the other set.
 REFERENCE_OVERLAP_SPACINGS = 2.0
@@ -455,12 +455,6 @@ def num(value: float, spec: str = ".3g") -> str:
     return "—" if math.isnan(value) else ("inf" if math.isinf(value) else format(value, spec))
 
 
-def table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
-    return ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)] + [
-        "| " + " | ".join(row) + " |" for row in rows
-    ]
-
-
 def group_rows(groups: Sequence[Group], records: Sequence[Record], methods: Sequence[str]) -> list[list[str]]:
     rows = []
     for group in groups:
@@ -578,12 +572,12 @@ def report(run: Run) -> str:
             ("subset run" if run.subset else "reported") if met is None else ("met" if met else "**missed**")
         )
         target_rows.append([group.key, group.target, measured, status])
-    lines += table(["group", "target", "FRISICP strict successes", "status"], target_rows)
+    lines += markdown_table(["group", "target", "FRISICP strict successes", "status"], target_rows)
     lines += [
         "",
         "## Per group, FRISICP and Open3D side by side" if OPEN3D in methods else "## Per group",
         "",
-        *table(group_header(methods), group_rows(groups, records, methods)),
+        *markdown_table(group_header(methods), group_rows(groups, records, methods)),
         "",
         "Worst FRISICP errors per group (the margin to the strict test):",
         "",
@@ -600,7 +594,7 @@ def report(run: Run) -> str:
                 str(f["right_but_unreliable"]),
             ]
         )
-    lines += table(
+    lines += markdown_table(
         ["group", "worst rot (deg)", "worst scale (%)", "worst transl (%)", "right but called unreliable"],
         worst_rows,
     )
@@ -634,11 +628,11 @@ def report(run: Run) -> str:
     header = ["pair", "FRISICP", "time (s)", "overlap fwd / bwd", "true overlap", "reliable (wrong)"]
     if OPEN3D in methods:
         header += ["Open3D", "time (s)", "Open3D fails at s ="]
-    lines += table(header, pair_rows)
+    lines += markdown_table(header, pair_rows)
     lines += ["", "## FRISICP cases that failed or that the verdict judged wrongly", ""]
     odd = [r for r in select(records, FRISICP) if not r.success or not r.reliable]
     if odd:
-        lines += table(
+        lines += markdown_table(
             [
                 "group",
                 "pair",
@@ -781,11 +775,9 @@ def print_table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+    quick = "s = 1.5, the first pair of each group"
+    parser = script.parser(__file__, __doc__, quick, data=True, seed=True)
     parser.add_argument("--jobs", type=int, default=1, help="processes (default 1)")
-    parser.add_argument(
-        "--quick", action="store_true", help="smoke test: 3 scales, the first pair of each group"
-    )
     parser.add_argument(
         "--only",
         default=None,
@@ -799,7 +791,6 @@ def main(argv: Sequence[str] | None = None) -> int:
         help="Markdown report; the JSON goes beside it (default docs/partial_overlap.md; "
         "build/partial_overlap_subset.md for --quick, --only or --scales)",
     )
-    parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--no-open3d", action="store_true", help="leave Open3D out even when installed")
     parser.add_argument(
         "--render",
@@ -808,20 +799,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         metavar="JSON",
         help="register nothing: rewrite the Markdown of an earlier run from its JSON (to --out, else beside it)",
     )
-    args = parser.parse_args(argv)
+    args = script.parse(parser, argv)
     if args.render:
         run = load_run(args.render)
         out = args.out or args.render.with_suffix(".md")
         out.write_text(report(run))
         print(f"wrote {out} from {args.render}")
         return 0
-    if not (DATA_DIR / "bunny" / "bun.conf").exists():
-        print(
-            f"partial_overlap: skipped, no data: {DATA_DIR / 'bunny'} is absent (the real scans live in "
-            "../shared/data beside the repository, or $FRISICP_DATA); nothing measured",
-            file=sys.stderr,
-        )
-        return 0
+    if not (args.data / "bunny" / "bun.conf").exists():
+        return script.skip(args, f"no data: {args.data / 'bunny' / 'bun.conf'} is absent; nothing measured")
     scales = QUICK_SCALES if args.quick else PAPER_SCALES
     if args.scales:
         scales = tuple(float(word) for word in args.scales.split(","))
@@ -846,7 +832,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     )
     command = "python benchmarks/partial_overlap.py" + "".join(word for word, on in options if on)
     tasks = [
-        Task(DATA_DIR, group.key, pair, scale, method, args.seed)
+        Task(args.data, group.key, pair, scale, method, args.seed)
         for group in groups
         for pair in group.pairs
         for scale in scales
@@ -870,7 +856,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     seconds = time.perf_counter() - start
     env["load average at end"] = f"{os.getloadavg()[0]:.2f}"
     references = {
-        pair.name: reference_overlaps(DATA_DIR, pair, args.seed) for g in groups for pair in g.pairs
+        pair.name: reference_overlaps(args.data, pair, args.seed) for g in groups for pair in g.pairs
     }
     run = Run(groups, records, methods, references, env, command, seconds, subset)
 

@@ -13,9 +13,11 @@ Usage::
 
     python benchmarks/speed_ab.py 7e9cfcc^            # before the partial-overlap core vs the working tree
     python benchmarks/speed_ab.py A --after B --threads 0 --repeats 7 --out docs/speed_ab.md
+    python benchmarks/speed_ab.py --quick             # HEAD vs the working tree, 2 scales, once -> build/
 
 ``--threads 1`` (default) sets OMP_NUM_THREADS=1 in both workers, as ``make bench-paper`` does;
-0 leaves OpenMP's default. Exits 0 without measuring when the bunny is absent, saying so.
+0 leaves OpenMP's default. Exits 0 without measuring when the bunny (in ``--data``) is absent or
+the repository is not a git checkout, saying so.
 """
 
 from __future__ import annotations
@@ -35,18 +37,22 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 WORKTREE = "worktree"
+WORKER = "--worker"  # argv[1] of a worker process, argv[2] the bunny's path
 
 
-def worker() -> int:
-    """Serve timing requests on stdin, one JSON line each: {"scale": s} -> seconds and accuracy."""
+def worker(bunny: str) -> int:
+    """Serve timing requests on stdin, one JSON line each: {"scale": s} -> seconds and accuracy.
+
+    Imports only its revision's frisicp_core and core_speed's case (not frisicp_bench, which
+    needs today's core)."""
     import numpy as np
-    from core_speed import BUNNY, forward_similarity
+    from core_speed import forward_similarity
 
     import frisicp_core
     from frisicp_core import register, rotation_angle
     from frisicp_core.io import read_points
 
-    model = read_points(BUNNY)
+    model = read_points(bunny)
     print(json.dumps({"core": str(Path(frisicp_core.__file__).parent)}), flush=True)
     for line in sys.stdin:
         scale = json.loads(line)["scale"]
@@ -67,7 +73,7 @@ def worker() -> int:
 class Worker:
     """One revision's frisicp_core in its own process."""
 
-    def __init__(self, label: str, core_parent: Path, threads: int) -> None:
+    def __init__(self, label: str, core_parent: Path, threads: int, bunny: Path) -> None:
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(core_parent), str(ROOT / "benchmarks")]))
         if threads:
             env["OMP_NUM_THREADS"] = str(threads)
@@ -75,7 +81,7 @@ class Worker:
             env.pop("OMP_NUM_THREADS", None)
         self.label = label
         self.process = subprocess.Popen(
-            [sys.executable, str(Path(__file__).resolve()), "--worker"],
+            [sys.executable, str(Path(__file__).resolve()), WORKER, str(bunny)],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             text=True,
@@ -153,54 +159,54 @@ def dirty() -> bool:
     return bool(status.stdout.strip())
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
+def main(argv: list[str] | None = None) -> int:
+    from core_speed import BUNNY, SCALES
+
+    from frisicp_bench import script
+
+    quick = "HEAD against the working tree, 2 scales, once"
+    parser = script.parser(__file__, __doc__, quick, data=True, report=True, repeats=5)
     parser.add_argument("before", nargs="?", help="git revision of the reference core, e.g. 7e9cfcc^")
     parser.add_argument(
         "--after", default=WORKTREE, help="git revision to compare (default: the working tree)"
     )
-    parser.add_argument("--repeats", type=int, default=5)
     parser.add_argument("--threads", type=int, default=1, help="OMP_NUM_THREADS of the workers; 0: unset")
-    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "speed_ab.md")
-    parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
-    args = parser.parse_args()
-    if args.worker:
-        return worker()
+    args = script.parse(parser, argv)
+    if args.quick:
+        args.before, args.repeats = args.before or "HEAD", 1
     if args.before is None:
         parser.error("the reference revision is required")
-    sys.path.insert(0, str(ROOT / "benchmarks"))
-    from core_speed import BUNNY, SCALES
-
-    if not BUNNY.exists():
-        print(
-            f"speed_ab: skipped, no data: {BUNNY} is absent (../shared/data beside the repo)", file=sys.stderr
-        )
-        return 0
+    scales = script.SMOKE_SCALES if args.quick else SCALES
+    bunny = args.data / BUNNY
+    if not bunny.exists():
+        return script.skip(args, f"no data: {bunny} is absent")
+    if not (ROOT / ".git").exists():
+        return script.skip(args, f"{ROOT} is not a git checkout: no revisions to compare")
     load_start = os.getloadavg()[0]
     with tempfile.TemporaryDirectory() as folder:
         cores = {
             label: extract_core(rev, Path(folder))
             for label, rev in (("before", args.before), ("after", args.after))
         }
-        workers = {label: Worker(label, parent, args.threads) for label, (parent, _) in cores.items()}
+        workers = {label: Worker(label, parent, args.threads, bunny) for label, (parent, _) in cores.items()}
         try:
             for w in workers.values():
-                w.time(SCALES[0])  # warm-up: imports, first trees
+                w.time(scales[0])  # warm-up: imports, first trees
             samples: dict[str, dict[float, list[dict[str, float]]]] = {
-                label: {s: [] for s in SCALES} for label in workers
+                label: {s: [] for s in scales} for label in workers
             }
             order = list(workers)
             for repeat in range(args.repeats):
-                for scale in SCALES:
+                for k, scale in enumerate(scales):
                     # Alternate who goes first, so neither always follows the other's cache footprint.
-                    for label in order if (repeat + SCALES.index(scale)) % 2 == 0 else order[::-1]:
+                    for label in order if (repeat + k) % 2 == 0 else order[::-1]:
                         samples[label][scale].append(workers[label].time(scale))
                 print(f"repeat {repeat + 1}/{args.repeats} done", flush=True)
         finally:
             for w in workers.values():
                 w.close()
     rows = []
-    for scale in SCALES:
+    for scale in scales:
         row: dict[str, float] = {"s": scale}
         for label in workers:
             runs = samples[label][scale]
@@ -237,15 +243,10 @@ def write_report(
     rows: list[dict[str, float]],
     summary: dict[str, float],
 ) -> None:
+    from frisicp_bench import script
+
     threads = f"OMP_NUM_THREADS={args.threads}" if args.threads else "OpenMP's default threads"
-    command = f"python benchmarks/speed_ab.py {args.before}" + (
-        f" --after {args.after}" if args.after != WORKTREE else ""
-    )
-    command += "".join(
-        f" --{name} {value}"
-        for name, value, default in (("repeats", args.repeats, 5), ("threads", args.threads, 1))
-        if value != default
-    )
+    command = script.command_line(args)
     lines = [
         "# Core speed before and after: `register` on the full-overlap cases of `make bench`, interleaved",
         "",
@@ -258,7 +259,7 @@ def write_report(
         f"- load average {summary['load_average_start']:.2f} at the start, {summary['load_average_end']:.2f} at the "
         "end: the machine is shared, so absolute times are inflated and noisy; the ratios are what this measures.",
         "",
-        f"**after / before: median over the 15 scales {summary['median_ratio']:.2f}, worst scale "
+        f"**after / before: median over the {len(rows)} scales {summary['median_ratio']:.2f}, worst scale "
         f"{summary['worst_ratio']:.2f}, total time {summary['total_ratio']:.2f}** (median register "
         f"{summary['median_before_ms']:.0f} ms before, {summary['median_after_ms']:.0f} ms after).",
         "",
@@ -285,4 +286,5 @@ def write_report(
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # A worker dispatches before anything imports frisicp_bench, which needs today's core.
+    sys.exit(worker(sys.argv[2]) if sys.argv[1:2] == [WORKER] else main())

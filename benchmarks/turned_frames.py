@@ -8,8 +8,9 @@ a seeded random axis through its centroid, at scales 0.5, 1 and 2 about it, with
 per angle (4 scans x 7 angles x 3 scales x 2 axes = 168 cases). Scored like ``frisicp bench``
 (rotation < 1 deg, scale < 1 %, translation < 0.5 % of the map's diagonal), one OpenMP thread.
 
-Usage: python benchmarks/turned_frames.py [--seed 0] [--out docs/turned_frames.md]
-Exits 0 without measuring when ../shared/data is absent, saying so.
+Usage: python benchmarks/turned_frames.py [--seed 0] [--data DIR] [--out docs/turned_frames.md]
+       python benchmarks/turned_frames.py --quick   # bun090 turned 0 and 45 deg, scale 1, one axis -> build/
+Exits 0 without measuring when the data folder is absent, saying so.
 """
 
 from __future__ import annotations
@@ -18,42 +19,38 @@ import os
 
 os.environ["OMP_NUM_THREADS"] = "1"  # before numpy and pykdtree load
 
-import argparse
 import sys
 import zlib
-from pathlib import Path
 
 import numpy as np
 
-from frisicp_bench.datasets import DataMissingError
+from frisicp_bench import script
 from frisicp_bench.families import MAP_SCANS, scan_to_map_family
 from frisicp_bench.metrics import pose_errors
-from frisicp_bench.report import case_record, provenance, write_report
+from frisicp_bench.report import case_record, write_report, wrong_but_reliable
 from frisicp_core import RegistrationConfig, Similarity, axis_angle_rotation, register
 
-ROOT = Path(__file__).resolve().parents[1]
-DATA_DIR = Path(os.environ.get("FRISICP_DATA") or ROOT.parent / "shared" / "data")
+TITLE = "A scan in its map with the frames turned apart, default config"
 ANGLES_DEG = (0, 15, 30, 45, 60, 75, 90)
 SCALES = (0.5, 1.0, 2.0)
 AXES = 2
 
 
-def main() -> int:
-    parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
-    parser.add_argument("--seed", type=int, default=0)
-    parser.add_argument("--out", type=Path, default=ROOT / "docs" / "turned_frames.md")
-    args = parser.parse_args()
-    try:
-        families = [scan_to_map_family(DATA_DIR, scan) for scan in MAP_SCANS]
-    except DataMissingError as err:
-        print(f"turned_frames: skipped, no data: {err}", file=sys.stderr)
+def main(argv: list[str] | None = None) -> int:
+    quick = "bun090 in the map turned 0 and 45 deg about one axis, at scale 1"
+    args = script.parse(script.parser(__file__, __doc__, quick, data=True, seed=True, report=True), argv)
+    scans, angles, scales, axes = (
+        (MAP_SCANS[:1], (0, 45), (1.0,), 1) if args.quick else (MAP_SCANS, ANGLES_DEG, SCALES, AXES)
+    )
+    families = script.load_data(args, lambda data: [scan_to_map_family(data, scan) for scan in scans])
+    if families is None:
         return 0
     records = []
     for family in families:
         centre = family.data.mean(axis=0)
-        for angle in ANGLES_DEG:
-            for scale in SCALES:
-                for axis_index in range(AXES):
+        for angle in angles:
+            for scale in scales:
+                for axis_index in range(axes):
                     rng = np.random.default_rng([args.seed, zlib.crc32(family.name.encode()), axis_index])
                     rotation = axis_angle_rotation(rng.normal(size=3), np.radians(angle))
                     g = Similarity.about(centre, scale, rotation)
@@ -71,35 +68,24 @@ def main() -> int:
                         f"scale {100 * errors.scale:6.2f} %  {result.seconds:.2f} s",
                         flush=True,
                     )
-    header = " | ".join(f"{a}°" for a in ANGLES_DEG)
     rows = []
     for family in families:
         cells = []
-        for angle in ANGLES_DEG:
+        for angle in angles:
             group = [r for r in records if r["family"] == family.name and r["turn_deg"] == angle]
             cells.append(f"{sum(r['success'] for r in group)}/{len(group)}")
-        rows.append(f"| {family.name} | {' | '.join(cells)} |")
+        rows.append([family.name, *cells])
     totals = []
-    for angle in ANGLES_DEG:
+    for angle in angles:
         group = [r for r in records if r["turn_deg"] == angle]
         totals.append(f"**{sum(r['success'] for r in group)}/{len(group)}**")
-    wrong_reliable = sum(bool(r["reliable"]) and not r["success"] for r in records)
-    command = "python benchmarks/turned_frames.py" + (f" --seed {args.seed}" if args.seed else "")
-    lines = [
-        "# A scan in its map with the frames turned apart, default config",
-        "",
-        provenance(command),
-        "",
-        f"Strict successes per turn of the scan (3 scales x 2 axes per cell); {wrong_reliable} of the failures "
-        "were called reliable.",
-        "",
-        f"| scan → map | {header} |",
-        "|---|" + "---|" * len(ANGLES_DEG),
-        *rows,
-        f"| all | {' | '.join(totals)} |",
-        "",
-    ]
-    write_report(args.out, lines, command, records)
+    rows.append(["all", *totals])
+    summary = (
+        f"Strict successes per turn of the scan ({len(scales)} scales x {axes} axes per cell); "
+        f"{wrong_but_reliable(records)} of the failures were called reliable."
+    )
+    header = ["scan → map", *(f"{a}°" for a in angles)]
+    write_report(args.out, TITLE, script.command_line(args), summary, (header, rows), records)
     return 0
 
 

@@ -14,6 +14,12 @@ JSON and PNG figures into ``docs/benchmarks/``. Modules, in data-flow order:
 - :mod:`.figures` convergence curves and registration pictures (matplotlib, Agg)
 - :mod:`.run` one run: suite -> cases -> report (what ``frisicp bench`` calls)
 
-The data folder: ``--data``, else ``$FRISICP_DATA``, else ``../shared/data`` from the current
-directory. Only ``frisicp_core`` is imported: the benchmark needs no ROS.
+and for the stand-alone scripts in ``benchmarks/``:
+
+- :mod:`.script` their command line (``--quick`` smoke runs, ``--data``, ``--out``), skips
+- :mod:`.report` a scored case, Markdown tables and the report files
+- :mod:`.neighbours` counting or replacing the core's nearest-neighbour searches
+
+The data folder: ``--data``, else ``$FRISICP_DATA``, else ``shared/data`` beside the repository
+(:func:`.datasets.default_data_dir`, which the scripts in ``benchmarks/`` and the tests use too). Only ``frisicp_core`` is imported: the benchmark needs no ROS.
 """

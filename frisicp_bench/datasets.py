@@ -17,19 +17,28 @@ from frisicp_core.similarity import FloatArray
 
 from .contours import outer_contour
 
-# Where the data is when --data is not given: this variable, else ../shared/data from the current
-# directory (the repository root, in CI and development checkouts: `make bench-paper` runs there).
+# Where the data is when --data is not given: this variable, else shared/data beside the repository.
 DATA_DIR_VARIABLE = "FRISICP_DATA"
-FALLBACK_DATA_DIR = Path("..") / "shared" / "data"
 
 # The bunny PLY files are in metres; the benchmark works in millimetres so RMS values read
 # naturally (the scans' noise is a fraction of a millimetre).
 MILLIMETRES_PER_METRE = 1000.0
 
 
+def repository_root() -> Path:
+    """The checkout this package is imported from; for an installed copy (no checkout around it),
+    the current directory, taken to be the repository root (where ``make`` runs)."""
+    checkout = Path(__file__).resolve().parents[1]
+    return (
+        checkout if (checkout / "setup.py").is_file() and (checkout / "package.xml").is_file() else Path.cwd()
+    )
+
+
 def default_data_dir() -> Path:
-    """``$FRISICP_DATA`` if set, else ``../shared/data`` relative to the current directory."""
-    return Path(os.environ.get(DATA_DIR_VARIABLE) or FALLBACK_DATA_DIR)
+    """``$FRISICP_DATA`` if set, else ``shared/data`` beside the repository (``../shared/data``
+    from :func:`repository_root`): ``frisicp bench``, the scripts in ``benchmarks/`` and the tests
+    all look here."""
+    return Path(os.environ.get(DATA_DIR_VARIABLE) or repository_root().parent / "shared" / "data")
 
 
 class DataMissingError(FileNotFoundError):

@@ -1,8 +1,9 @@
-"""What the stand-alone scripts in ``benchmarks/`` share: one scored case, and the report files.
+"""What the stand-alone scripts in ``benchmarks/`` share: one scored case, Markdown tables and the
+report files.
 
 Each script registers its own cases and writes ``docs/NAME.md`` (the tables) with
 ``docs/NAME.json`` (every case) beside it, so a figure quoted in the README can be traced to the
-case that produced it.
+case that produced it. (Their command line: :mod:`.script`.)
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 import json
 import os
 import platform
+from collections.abc import Sequence
 from datetime import date
 from pathlib import Path
 from typing import Any
@@ -41,8 +43,28 @@ def provenance(command: str) -> str:
     )
 
 
-def write_report(out: Path, lines: list[str], command: str, records: list[dict[str, Any]]) -> None:
-    """Write the Markdown ``lines`` to ``out`` and every case beside it as JSON; print the report."""
+def wrong_but_reliable(records: Sequence[dict[str, Any]]) -> int:
+    """How many of the cases (:func:`case_record`) failed although the verdict called them reliable."""
+    return sum(bool(r["reliable"]) and not r["success"] for r in records)
+
+
+def markdown_table(header: Sequence[str], rows: Sequence[Sequence[object]]) -> list[str]:
+    """A Markdown table's lines: the header, the rule and a line per row."""
+    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
+    return lines + ["| " + " | ".join(str(cell) for cell in row) + " |" for row in rows]
+
+
+def write_report(
+    out: Path,
+    title: str,
+    command: str,
+    summary: str,
+    table: tuple[Sequence[str], Sequence[Sequence[object]]],
+    records: list[dict[str, Any]],
+) -> None:
+    """Write the report to ``out``: the title, the :func:`provenance` line of ``command``, the
+    ``summary`` paragraph and the ``table`` (header, rows); every case beside it as JSON. Print it."""
+    lines = [f"# {title}", "", provenance(command), "", summary, "", *markdown_table(*table), ""]
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text("\n".join(lines))
     out.with_suffix(".json").write_text(json.dumps({"command": command, "records": records}, indent=1) + "\n")

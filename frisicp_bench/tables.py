@@ -10,6 +10,7 @@ from pathlib import Path
 from frisicp_core import Similarity
 
 from . import cases, families, metrics, reference
+from .report import markdown_table
 from .runner import BenchmarkRun, CaseRecord
 from .summary import fmt, mean, median, select, speed_comparisons, success_rate
 from .targets import TargetCheck
@@ -23,12 +24,6 @@ COLUMN_ORDER = ("icp", "scale-icp", "bounded-icp", "frisicp", "frisicp-default",
 def ordered_methods(run: BenchmarkRun, dim: int | None = None) -> list[str]:
     present = {m.key: m for m in run.methods}
     return [k for k in COLUMN_ORDER if k in present and (dim is None or dim in present[k].dims)]
-
-
-def _table(header: Sequence[str], rows: Sequence[Sequence[str]]) -> list[str]:
-    lines = ["| " + " | ".join(header) + " |", "|" + "---|" * len(header)]
-    lines += ["| " + " | ".join(row) + " |" for row in rows]
-    return lines
 
 
 def _nearest_scale(run_scales: Sequence[float], wanted: float) -> float:
@@ -61,7 +56,7 @@ def paper_table(run: BenchmarkRun, kind: str, quantity: str) -> list[str]:
         )
     header = ["shape", "s"] + [run.method_label(k) for k in keys]
     title = "Symmetric RMS" if quantity == "rms" else "Time"
-    return [f"**{title} ({unit}), {kind}**", "", *_table(header, rows), ""]
+    return [f"**{title} ({unit}), {kind}**", "", *markdown_table(header, rows), ""]
 
 
 def success_table(run: BenchmarkRun) -> list[str]:
@@ -73,7 +68,7 @@ def success_table(run: BenchmarkRun) -> list[str]:
             records = select(run, family=family.name, method=key)
             cells.append(f"{success_rate(records):.0%}" if records else "—")
         rows.append(cells)
-    return _table(["family"] + [run.method_label(k) for k in keys], rows)
+    return markdown_table(["family"] + [run.method_label(k) for k in keys], rows)
 
 
 def medians_table(run: BenchmarkRun) -> list[str]:
@@ -100,7 +95,7 @@ def medians_table(run: BenchmarkRun) -> list[str]:
                         fmt(median(r.seconds for r in records), ".3f"),
                     ]
                 )
-    return _table(
+    return markdown_table(
         [
             "cases",
             "method",
@@ -133,7 +128,7 @@ def speed_table(run: BenchmarkRun) -> list[str]:
                     f"{c.frisicp_success:.0%}",
                 ]
             )
-    return _table(
+    return markdown_table(
         [
             "family",
             "FRISICP config",
@@ -150,7 +145,7 @@ def speed_table(run: BenchmarkRun) -> list[str]:
 
 
 def targets_table(checks: Sequence[TargetCheck]) -> list[str]:
-    return _table(
+    return markdown_table(
         ["target", "met", "measured"], [[c.target, "yes" if c.met else "**no**", c.detail] for c in checks]
     )
 

@@ -32,7 +32,7 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "--data",
         type=Path,
         default=None,
-        help="the shared data folder (default: $FRISICP_DATA, else ../shared/data from the current directory)",
+        help="the shared data folder (default: $FRISICP_DATA, else ../shared/data beside the repository)",
     )
     parser.add_argument("--seed", type=int, default=0, help="seed of the perturbations")
     parser.add_argument("--no-open3d", action="store_true", help="leave Open3D out even when installed")

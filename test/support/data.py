@@ -3,17 +3,17 @@
 from __future__ import annotations
 
 import dataclasses
-import os
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
+from frisicp_bench.datasets import default_data_dir
 from frisicp_core import Similarity, axis_angle_rotation
 
-# ../shared/data beside the repository, or FRISICP_DATA (the variable frisicp bench reads too).
-SHARED_DATA = Path(os.environ.get("FRISICP_DATA") or Path(__file__).resolve().parents[3] / "shared" / "data")
+# $FRISICP_DATA, else ../shared/data beside the repository: where frisicp bench and benchmarks/ look.
+SHARED_DATA = default_data_dir()
 
 
 def shared_file(relative: str) -> Path:
