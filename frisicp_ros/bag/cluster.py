@@ -20,6 +20,7 @@ them with the same chunk registrar a local ``--jobs N`` run uses.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import logging
 import socket
@@ -54,6 +55,7 @@ CONNECT_TIMEOUT_SEC = 10.0
 _WINDOW_PER_THREAD = 2
 _MIN_WINDOW = 4
 _THREADS_REFRESH_SEC = 5.0  # how often the window follows workers joining or leaving
+_CLOSE_TIMEOUT_SEC = 5.0
 
 
 class ClusterError(Exception):
@@ -94,9 +96,12 @@ class DaskCluster:
 
     def __init__(self, address: str, timeout: float = CONNECT_TIMEOUT_SEC) -> None:
         self.address = address
-        # The client's own log lines ("Couldn't gather 1 keys, rescheduling" when a worker
-        # dies) describe what the scheduler already repairs; the run reports worker counts.
-        logging.getLogger("distributed").setLevel(logging.ERROR)
+        # The client's own log lines ("Couldn't gather 1 keys, rescheduling" when a worker dies,
+        # tracebacks when the scheduler is gone) describe what the scheduler repairs or what the
+        # run reports itself, in one line, per bag.
+        for name in ["distributed", *logging.root.manager.loggerDict]:  # Dask's config sets some
+            if name.split(".")[0] == "distributed":
+                logging.getLogger(name).setLevel(logging.CRITICAL)
         target = {"scheduler_file": address} if Path(address).is_file() else {"address": address}
         try:
             self.client = Client(**target, timeout=timeout, set_as_default=False, name="frisicp-bag")
@@ -110,7 +115,8 @@ class DaskCluster:
 
     def plan(self, settings: PipelineSettings, interruptible: Interruptible) -> Plan:
         threads = self._worker_threads()
-        notice = f"--scheduler {self.address}: {self.workers_at_start} workers, {threads} threads"
+        workers = self.workers_at_start
+        notice = f"--scheduler {self.address}: {workers} worker{'s' * (workers != 1)}, {threads} threads"
         if not threads:
             notice += " (none yet: the tasks wait for workers to join)"
         if settings.warm_start:
@@ -119,16 +125,21 @@ class DaskCluster:
         return Plan(chunk_registrar(settings), per_bag_chunks(mapper), notice)
 
     def close(self) -> str | None:
-        workers = len(self.client.nthreads())
-        self.client.close()
-        if workers != self.workers_at_start:
+        try:
+            workers = len(self.client.nthreads())
+        except OSError:  # the scheduler is gone (the run has said so)
+            workers = None
+        with contextlib.suppress(Exception):
+            self.client.close(timeout=_CLOSE_TIMEOUT_SEC)
+        if workers is not None and workers != self.workers_at_start:
             return f"the cluster had {self.workers_at_start} workers at the start, {workers} at the end"
         return None
 
     def _worker_threads(self) -> int:
         threads, counted = self._threads
         if time.monotonic() - counted > _THREADS_REFRESH_SEC:
-            threads = sum(self.client.nthreads().values())
+            with contextlib.suppress(OSError):  # a scheduler gone shows in the results' wait
+                threads = sum(self.client.nthreads().values())
             self._threads = (threads, time.monotonic())
         return threads
 
@@ -159,7 +170,8 @@ class DaskCluster:
                 yield self._result(*pending.popleft(), interruptible)
         finally:
             if pending:
-                self.client.cancel([future for _, future in pending])
+                with contextlib.suppress(Exception):
+                    self.client.cancel([future for _, future in pending])
 
     def _result(
         self, chunk: list[BatchPair], future: Future[Any], interruptible: Interruptible

@@ -120,6 +120,7 @@ class BagRun:
         self.reading: PairReading | None = None
         self.read_error: str | None = None  # opened at the survey, not when read
         self.failed: str | None = None  # why an executor could not register its pairs
+        self.cut_short: str | None = None  # why the run stopped while this bag was in hand
         self.stats: RunStats | None = None  # from the moment its outputs exist
         self.results: JsonLines | None = None
         self.result_bag: ResultBag | None = None
@@ -179,20 +180,21 @@ class BagRun:
     @property
     def stopped(self) -> str | None:
         """Why the bag was not read to its end (None: it was)."""
-        if self.failed or self.read_error:
-            return self.failed or self.read_error
+        if self.cut_short or self.failed or self.read_error:
+            return self.cut_short or self.failed or self.read_error
         return self.reading.stopped if self.reading is not None else None
 
     def close(self, stopped: str | None) -> list[str]:
         """Close the outputs; the lines that report the bag (``stopped``: why the run stopped)."""
         self.finished = True
+        self.cut_short = stopped
         assert self.results is not None and self.stats is not None
         self.results.close()
         kept = f"{self.stats.pairs} results kept in {'stdout' if self.job.to.jsonl == '-' else self.job.to.jsonl}"
         if self.result_bag is not None:
             kept += f" and {self.result_bag.close()}"
         lines = []
-        stopped = stopped or self.stopped
+        stopped = self.stopped
         if stopped is not None:
             lines.append(f"{self.label}stopped {self.stats.last}: {stopped}; {kept}")
         unpaired = self.reading.pairer.unpaired_data if self.reading is not None else 0

@@ -7,6 +7,7 @@ processes on 127.0.0.1 (test/support/cluster.py), three bags of 24 pairs each.
   up: it still registers the next run.
 - A bag the workers cannot read (hidden from them by a mount namespace) is reported for that bag;
   the other bags are registered; the exit code says so.
+- A scheduler lost mid-run stops the run with every line written kept, and says why.
 """
 
 from __future__ import annotations
@@ -245,3 +246,51 @@ def test_an_unreachable_scheduler_is_one_clear_error(capsys, recordings, tmp_pat
 
     with pytest.raises(ClusterError, match=r"cannot connect to the Dask scheduler at tcp://127.0.0.1:9"):
         DaskCluster("tcp://127.0.0.1:9", timeout=1.0)
+
+
+def test_a_scheduler_lost_mid_run_stops_the_run_with_every_line_kept(
+    recordings, local_lines, cluster, tmp_path, capsys
+):
+    """In process, to give the client a 2 s reconnection timeout (the command's is 10 s)."""
+    import threading
+
+    from frisicp_ros.bag.cluster import DaskCluster
+    from frisicp_ros.bag.run import BagJob, BagRun, Destinations, register_batch
+    from frisicp_ros.stream.settings import settings_from
+
+    paths, _ = recordings
+    out = tmp_path / "out"
+    out.mkdir()
+    runs = [
+        BagRun(
+            BagJob(paths[name], Destinations(str(out / f"{name}.jsonl")), name),
+            settings_from({}),
+            (MODEL_TOPIC, DATA_TOPIC),
+        )
+        for name in NAMES
+    ]
+    for run in runs:
+        run.survey()
+
+    def kill_the_scheduler_after_a_line() -> None:
+        deadline = time.monotonic() + 60
+        while not (out / "alpha.jsonl").exists() or not (out / "alpha.jsonl").stat().st_size:
+            if time.monotonic() > deadline:
+                return
+            time.sleep(0.01)
+        scheduler = cluster.processes[0]
+        os.killpg(scheduler.pid, signal.SIGKILL)
+        scheduler.wait()
+
+    killer = threading.Thread(target=kill_the_scheduler_after_a_line)
+    killer.start()
+    code = register_batch(runs, DaskCluster(cluster.address, timeout=2.0), progress=False)
+    killer.join()
+    err = capsys.readouterr().err
+    assert code == 1, err
+    assert (
+        "cancelled this run's tasks (the scheduler restarted or is gone)" in err and "Traceback" not in err
+    ), err
+    written = lines(out / "alpha.jsonl")
+    assert 1 <= len(written) < PAIRS and written == local_lines["alpha"][: len(written)]
+    assert "batch of 3 bags: 0 read to the end, 1 stopped early (alpha), 2 not started" in err, err
