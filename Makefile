@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo test lint config bench bench-smoke bench-paper bench-paper-quick bench-partial bench-node bench-bag clean
+.PHONY: setup demo test lint config bench bench-smoke bench-paper bench-paper-quick bench-partial bench-node bench-bag bench-cluster clean
 
 $(STAMP): setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
@@ -72,6 +72,11 @@ bench-node: $(STAMP)
 # frisicp bag throughput, --jobs 1 and 2, on 200 pairs of 30k-point clouds (docs/bag.md); PAIRS=20 for a look.
 bench-bag: $(STAMP)
 	$(BIN)/python benchmarks/bag_throughput.py --pairs $(or $(PAIRS),200)
+
+# frisicp bag on a Dask cluster on this machine (1 and 2 workers) beside --jobs 1/2, the scheduling
+# overhead per pair, LocalCluster's start-up and Ctrl-C beside the pool's (docs/bag.md); PAIRS=16 for a look.
+bench-cluster: $(STAMP)
+	nice -n 10 $(BIN)/python benchmarks/cluster_throughput.py --pairs $(or $(PAIRS),60)
 
 clean:
 	rm -rf $(VENV) build install log *.egg-info

@@ -44,7 +44,11 @@ setup(
     ],
     extras_require={
         "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
+        # `frisicp bag --scheduler`: a Dask cluster's scheduler, worker management and deployment
+        # (dask-jobqueue, dask-kubernetes, the helm chart) instead of a home-made distributed pool.
+        "dask": ["distributed>=2024.8"],
         "test": [
+            "distributed>=2024.8",  # the cluster tests start a real scheduler and workers
             "pytest>=7",
             "mcap>=1.1",
             "mcap-ros2-support>=0.5",

@@ -15,7 +15,7 @@ the bag mode's tests fail otherwise.
 from __future__ import annotations
 
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -59,11 +59,31 @@ class PlainCloud(CloudParts):
         return self.header.stamp.sec * 1_000_000_000 + self.header.stamp.nanosec
 
 
+class RepeatCounter:
+    """Numbers the messages of a topic that follow each other at the same bag time (0, 1, ...).
+
+    The client reading a whole bag and a worker reading a time range of it count alike, so the
+    number names the same message in both (``frisicp_ros.bag.locate``).
+    """
+
+    def __init__(self) -> None:
+        self._last: dict[str, tuple[int, int]] = {}  # topic -> (bag_ns, repeat)
+
+    def count(self, topic: str, bag_ns: int) -> int:
+        last = self._last.get(topic)
+        repeat = last[1] + 1 if last is not None and last[0] == bag_ns else 0
+        self._last[topic] = (bag_ns, repeat)
+        return repeat
+
+
 @dataclass(frozen=True)
 class StampedCloud:
     bag_ns: int  # receive time in the bag
     ordinal: int  # 0-based position among the messages of its topic
     cloud: PlainCloud
+    # Earlier messages of its topic at the same bag time: with ``bag_ns`` this finds the message
+    # again by a time-range read (frisicp_ros.bag.locate), which cannot count ordinals.
+    repeat: int = 0
 
 
 @dataclass(frozen=True)
@@ -92,6 +112,7 @@ class PairReading:
     stopped: str | None = None
     data_clouds: int = 0  # data messages read so far
     model_clouds: int = 0
+    repeats: RepeatCounter = field(default_factory=lambda: RepeatCounter())
 
     @classmethod
     def paired_as(
@@ -113,8 +134,10 @@ class PairReading:
                     return
                 is_data = message.topic == self.data_topic
                 ordinal = self.data_clouds if is_data else self.model_clouds
+                repeat = self.repeats.count(message.topic, message.stamp_ns)
                 try:
-                    cloud = StampedCloud(message.stamp_ns, ordinal, PlainCloud.from_message(message.message))
+                    plain = PlainCloud.from_message(message.message)
+                    cloud = StampedCloud(message.stamp_ns, ordinal, plain, repeat)
                 except (AttributeError, TypeError, ValueError) as err:
                     self.stopped = (
                         f"message {message.index} ({message.topic} at bag time "

@@ -1,36 +1,50 @@
-"""``frisicp bag INPUT``: register the cloud pairs of a bag offline, without ROS.
+"""``frisicp bag INPUT [INPUT ...]``: register the cloud pairs of bags offline, without ROS.
 
 Pairs are formed and registered by the same code as the live node (``pairing``, ``pipeline``,
 ``outputs``). Results go to JSONL (stdout by default) as they are computed and, with
-``--out-bag``, into a rosbag2 with the node's output topics. Progress and the summary go to
-stderr. Exit codes: 0 the bag was read to its end (rejected or unreliable pairs are marked per
-line and counted in the summary), 1 the bag stopped being readable part-way or an output failed
-(results so far kept), 2 bad arguments or an unreadable bag, 130 interrupted (Ctrl-C), 143
-terminated (SIGTERM) (results so far kept in both).
+``--out-bag``, into a rosbag2 with the node's output topics; several bags write one JSONL (and
+with ``--result-bags`` one result bag) per bag into ``--out-dir``. ``--jobs N`` registers on this
+machine's processes, ``--scheduler ADDRESS`` on a Dask cluster (``frisicp_ros.bag.cluster``).
+Progress and the summaries go to stderr. Exit codes: 0 every bag was read to its end (rejected or
+unreliable pairs are marked per line and counted in the summary), 1 a bag was unreadable or
+stopped being readable part-way, or an output or the executor failed (results so far kept), 2
+bad arguments, an unreadable single bag or no readable bag at all, or an unreachable scheduler,
+130 interrupted (Ctrl-C), 143 terminated (SIGTERM) (results so far kept in both).
 """
 
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from frisicp_ros.cli.command import CommandError
 from frisicp_ros.cli.options import add_options, given_values
 from frisicp_ros.stream.settings import PipelineSettings, Surface, settings_from
 
+if TYPE_CHECKING:
+    from frisicp_ros.bag.executors import Executor
+    from frisicp_ros.bag.run import BagJob
+
 NAME = "bag"
 MAX_JOBS = 256  # processes; more only exhausts memory (each holds its clouds and a KD-tree)
-SUMMARY = "register the cloud pairs of a bag offline (no ROS installation needed)"
+SUMMARY = "register the cloud pairs of bags offline (no ROS installation needed), here or on a Dask cluster"
 DESCRIPTION = (
-    "Register every (model, data) PointCloud2 pair of a rosbag2 folder, .db3 or "
-    ".mcap file, or ROS 1 .bag, paired and registered as the live node does it, with the "
-    "node's defaults. One JSON line per pair on stdout (or --out), a progress bar and a "
-    "summary on stderr."
+    "Register every (model, data) PointCloud2 pair of rosbag2 folders, .db3 or "
+    ".mcap files, or ROS 1 .bag files, paired and registered as the live node does it, with the "
+    "node's defaults. One JSON line per pair on stdout (or --out, or one file per bag in "
+    "--out-dir), a progress bar and a summary on stderr."
 )
+RESULT_BAG_SUFFIX = "_results"  # --out-dir DIR --result-bags: DIR/<bag name>_results/
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("input", help="rosbag2 folder, .db3 or .mcap file, or ROS 1 .bag file")
+    parser.add_argument(
+        "inputs",
+        nargs="+",
+        metavar="INPUT",
+        help="rosbag2 folder, .db3 or .mcap file, or ROS 1 .bag file; several need --out-dir",
+    )
     parser.add_argument("--model-topic", required=True, help="PointCloud2 topic that stays fixed")
     parser.add_argument("--data-topic", required=True, help="PointCloud2 topic registered onto the model")
     parser.add_argument(
@@ -38,6 +52,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument(
         "--out-bag", metavar="DIR", help="also write a rosbag2 (mcap) with the node's output topics"
+    )
+    parser.add_argument(
+        "--out-dir",
+        metavar="DIR",
+        help="one JSONL file per bag, DIR/<bag name>.jsonl (created if missing); needed for several bags",
+    )
+    parser.add_argument(
+        "--result-bags",
+        action="store_true",
+        help=f"with --out-dir: also a result bag per bag, DIR/<bag name>{RESULT_BAG_SUFFIX}",
     )
     parser.add_argument(
         "--out-prefix",
@@ -48,10 +72,16 @@ def configure(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--jobs",
         type=int,
-        default=1,
+        default=None,
         metavar="N",
-        help=f"registration processes, 1..{MAX_JOBS}; results stay in bag order. With warm start each"
-        " worker warm-starts within chunks of consecutive pairs (default 1)",
+        help=f"registration processes on this machine, 1..{MAX_JOBS}; results stay in bag order. With"
+        " warm start each worker warm-starts within chunks of consecutive pairs (default 1)",
+    )
+    parser.add_argument(
+        "--scheduler",
+        metavar="ADDRESS",
+        help="register on the Dask cluster of this scheduler (tcp://host:8786, or a scheduler file);"
+        " the bags must be at the same path on every worker (a shared filesystem)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_options(parser, Surface.BAG)
@@ -67,10 +97,74 @@ def settings_from_args(args: argparse.Namespace) -> PipelineSettings:
 def check_arguments(args: argparse.Namespace, settings: PipelineSettings) -> None:
     if args.model_topic == args.data_topic:
         raise CommandError("--model-topic and --data-topic must be different topics")
-    if not 1 <= args.jobs <= MAX_JOBS:
+    if args.jobs is not None and not 1 <= args.jobs <= MAX_JOBS:
         raise CommandError(f"--jobs must be in [1, {MAX_JOBS}], got {args.jobs}")
+    if args.jobs is not None and args.scheduler:
+        raise CommandError("--jobs is for this machine; with --scheduler the cluster's workers run the pairs")
+    if args.out_dir and (args.out != "-" or args.out_bag):
+        raise CommandError("--out-dir writes one file per bag: leave out --out and --out-bag")
+    if args.result_bags and not args.out_dir:
+        raise CommandError("--result-bags applies only with --out-dir (one bag: --out-bag DIR)")
+    if len(args.inputs) > 1 and not args.out_dir:
+        raise CommandError(f"{len(args.inputs)} bags need --out-dir DIR (one JSONL file per bag)")
     if args.out_bag and Path(args.out_bag).exists():  # before --out is truncated or the bag read
         raise CommandError(f"{args.out_bag} exists already; choose a new --out-bag folder")
+
+
+def bag_name(path: Path) -> str:
+    """A bag's name in --out-dir: a rosbag2 folder's name, a file's name without its suffix."""
+    resolved = path.resolve()
+    return resolved.name if resolved.is_dir() else resolved.stem
+
+
+def bag_jobs(args: argparse.Namespace) -> list[BagJob]:
+    """Every input with its destinations; refuses clashing names and existing result bags."""
+    from frisicp_ros.bag.run import BagJob, Destinations
+
+    paths = [Path(p) for p in args.inputs]
+    if not args.out_dir:
+        return [BagJob(paths[0], Destinations(args.out, args.out_bag, args.out_prefix))]
+    out_dir = Path(args.out_dir)
+    names: dict[str, Path] = {}
+    for path in paths:
+        name = bag_name(path)
+        if name in names:
+            raise CommandError(
+                f"{names[name]} and {path} would both write {out_dir / name}.jsonl; "
+                "give the bags distinct names (or run them in separate batches)"
+            )
+        names[name] = path
+    jobs = []
+    for name, path in names.items():
+        result_bag = out_dir / f"{name}{RESULT_BAG_SUFFIX}" if args.result_bags else None
+        if result_bag is not None and result_bag.exists():
+            raise CommandError(f"{result_bag} exists already; choose a new --out-dir (or remove it)")
+        to = Destinations(
+            str(out_dir / f"{name}.jsonl"), str(result_bag) if result_bag else None, args.out_prefix
+        )
+        jobs.append(BagJob(path, to, name if len(paths) > 1 else ""))
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise CommandError(f"cannot create --out-dir {out_dir}: {err.strerror or err}") from None
+    return jobs
+
+
+def executor_for(args: argparse.Namespace) -> Executor:
+    if not args.scheduler:
+        from frisicp_ros.bag.executors import LocalProcesses
+
+        return LocalProcesses(args.jobs or 1)
+    try:
+        from frisicp_ros.bag.cluster import ClusterError, DaskCluster
+    except ImportError as err:
+        raise CommandError(
+            f"--scheduler needs Dask's distributed package ({err}): pip install 'frisicp_ros[dask]'"
+        ) from None
+    try:
+        return DaskCluster(args.scheduler)
+    except ClusterError as err:
+        raise CommandError(str(err)) from None
 
 
 def run(args: argparse.Namespace) -> int:
@@ -78,17 +172,15 @@ def run(args: argparse.Namespace) -> int:
     check_arguments(args, settings)
     # Imported here: rosbags and tqdm are needed only when a bag is read.
     from frisicp_ros.bag.output import OutputError
-    from frisicp_ros.bag.pairs import PairReading
-    from frisicp_ros.bag.reader import BagError, open_bag, require_pointcloud2_topic
-    from frisicp_ros.bag.run import Destinations, register_bag
+    from frisicp_ros.bag.run import BagRun, register_batch
 
-    destinations = Destinations(args.out, args.out_bag, args.out_prefix, not args.no_progress)
+    runs = [BagRun(job, settings, (args.model_topic, args.data_topic)) for job in bag_jobs(args)]
+    for bag in runs:
+        bag.survey()
+    if len(runs) == 1 and runs[0].unreadable:  # one bag: its error is the command's
+        raise CommandError(runs[0].unreadable)
+    executor = executor_for(args)
     try:
-        with open_bag(args.input) as reader:
-            for topic in (args.model_topic, args.data_topic):
-                require_pointcloud2_topic(reader, topic)
-            data_count = reader.topics[args.data_topic].msgcount
-            reading = PairReading.paired_as(settings, reader, args.model_topic, args.data_topic)
-            return register_bag(reading, settings, args.jobs, destinations, data_count)
-    except (BagError, OutputError) as err:
+        return register_batch(runs, executor, progress=not args.no_progress)
+    except OutputError as err:
         raise CommandError(str(err)) from None

@@ -79,11 +79,17 @@ ChunkMapper = Callable[
 ]
 
 
-def in_chunks(mapper: ChunkMapper[PairT], size: int) -> PairMapper[ChunkRegistrar, PairT]:
-    """A pair mapper that hands ``mapper`` chunks of ``size`` consecutive pairs."""
+def in_chunks(
+    mapper: ChunkMapper[PairT], size: int, stream_of: Callable[[PairT], object] | None = None
+) -> PairMapper[ChunkRegistrar, PairT]:
+    """A pair mapper that hands ``mapper`` chunks of ``size`` consecutive pairs.
+
+    With ``stream_of``, pairs of several streams (the bags of a batch) follow each other and a
+    chunk never spans two: each stream is chunked from its own first pair, as if alone.
+    """
 
     def mapped(register: ChunkRegistrar, pairs: Iterable[PairT]) -> Registered_[PairT]:
-        chunks = mapper(register, _batched(pairs, size))
+        chunks = mapper(register, _batched(pairs, size, stream_of))
         with closing(chunks):
             for chunk, outcomes in chunks:
                 yield from zip(chunk, outcomes, strict=True)
@@ -91,10 +97,16 @@ def in_chunks(mapper: ChunkMapper[PairT], size: int) -> PairMapper[ChunkRegistra
     return mapped
 
 
-def _batched(items: Iterable[PairT], size: int) -> Iterator[list[PairT]]:
-    iterator = iter(items)
-    while chunk := list(itertools.islice(iterator, size)):
-        yield chunk
+def _batched(
+    items: Iterable[PairT], size: int, stream_of: Callable[[PairT], object] | None
+) -> Iterator[list[PairT]]:
+    if stream_of is None:
+        iterator = iter(items)
+        while chunk := list(itertools.islice(iterator, size)):
+            yield chunk
+        return
+    for _, stream in itertools.groupby(items, stream_of):
+        yield from _batched(stream, size, None)
 
 
 class SequentialRegistrar:
