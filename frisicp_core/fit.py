@@ -27,11 +27,11 @@ import numpy as np
 from .kdtree import NearestNeighbors
 from .similarity import FloatArray, Similarity
 
-SAMPLE = 3000
+SAMPLE = 1500
 NEIGHBOURS = 12
 HIT_SIGMAS = 3.0
 # A miss counts as near when its nearest point is within this many hit distances.
-NEAR_REACH = 10.0
+NEAR_REACH = 5.0
 
 
 @dataclass(frozen=True)

@@ -36,593 +36,34 @@ are built once per level, never per iteration.
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .acceleration import AndersonAccelerator
 from .ambiguity import AMBIGUITY_MARGIN, Competitor, probe_starts, separation
 from .config import Method, RegistrationConfig
-from .estimate import PairPart, estimate_similarities
 from .fit import Fit, measure_fit
 from .hypotheses import beyond_guess, covariance_scale_bounds, initial_hypotheses
-from .kdtree import NearestNeighbors
-from .overlap import Selection, select_pairs
+from .levels import Pairs, Pyramid, level_motion
 from .points import as_point_set, centroid, check_same_dimension, rms_radius
 from .poses import PoseBatch
 from .refine import ModelNormals, Sets, polish, uncertainty_of
 from .result import IterationRecord, LevelReport, RegistrationResult
 from .sampling import downsample, in_spatial_order, level_sizes
 from .similarity import FloatArray, Similarity
+from .solver import ACCELERATE_FROM, ACCELERATE_FROM_TRACKING, Solver, compare_finalists
 from .uncertainty import Uncertainty
 from .verdict import judge, spread
 
-# Most passes a hypothesis gets on the screening level to settle into its local minimum.
-_SCREENING_PASSES = 60
-# Screening keeps the better half of each family of starting poses, ranked on every
-# _ROUGH_EVERY-th point of its level, the best few after a few passes, then drops one whose merit
-# is this many times the best one's (see _Solver.screen).
-_ROUGH_EVERY = 4
-_ROUGH_POINTS = 100
-_SCREEN_PRUNE_FROM = 2
-_KEEP_PER_FAMILY = 3
-_SCREEN_PRUNE_RATIO = 2.0
-# A hypothesis outside the finalists' margin whose merit, falling as fast as in its last pass,
-# would not reach the margin within this many passes leaves: ICP's merit falls ever more slowly,
-# and a sequence converging linearly at rate rho still has gain * rho / (1 - rho) to go, less than
-# this many gains for rho < 10/11 (see _Solver.screen).
-_SCREEN_HORIZON = 10.0
-# Distinct minima whose screening merits are within this margin of the best are compared again on
-# dense targets (at most this many): the thinned level can rank nearby basins wrongly.
-_FINALIST_MARGIN = 0.25
-_FINALISTS = 3
-# A level's first step is significant when it moves the data by more than this many standard
-# errors of the estimate (see ConvergenceCriteria.noise_floor): the usual three-sigma rule.
-_SIGNIFICANT = 3.0
-# First iteration of a level at which Anderson acceleration may propose steps. From a cold start
-# the first steps are large and the pairs change under them: extrapolating from a single step
-# misled it (bun045 -> bun000: 29 passes instead of 18). The refinement levels of a tracking
-# start begin in the linear regime, where the remaining error is a slow slide along the
-# surface, and waiting a step there costs one (10k-point node pairs of a moving sensor: mean
-# 3.5 -> 3.0 passes).
-_ACCELERATE_FROM = 3
-_ACCELERATE_FROM_TRACKING = 2
-# Points sampled to measure a set's spacing (median distance to the nearest other point).
-_SPACING_SAMPLE = 256
-# Most passes a probe of the answer (frisicp_core.ambiguity) takes to settle.
-_PROBE_PASSES = 30
+# Most passes a probe of the answer (frisicp_core.ambiguity) takes to settle on the screening
+# level, and the margin of the merit there within which it is run down the levels to be compared.
+_PROBE_PASSES = 20
+_NOMINATE = 0.15
+# Clouds whose estimated overlaps are both at least this cover each other (see _register).
+_COMPLETE = 0.9
 # Most probes refined down the levels to be compared with the answer on the full sets.
 _PROBE_REFINED = 3
-
-
-@dataclass
-class _Level:
-    """One resolution: the thinned sets, their trees, and what the loop needs to know of them."""
-
-    data: FloatArray
-    model: FloatArray
-    data_tree: NearestNeighbors | None
-    model_tree: NearestNeighbors
-    data_mean: FloatArray
-    model_mean: FloatArray
-    data_second_moment: FloatArray
-    data_spacing: float
-    model_spacing: float
-
-    @classmethod
-    def build(
-        cls,
-        data: FloatArray,
-        model: FloatArray,
-        bidirectional: bool,
-        backend: str,
-        targets: tuple[NearestNeighbors | None, NearestNeighbors] | None = None,
-    ) -> _Level:
-        if targets is None:
-            data_tree = NearestNeighbors(data, backend) if bidirectional else None
-            model_tree = NearestNeighbors(model, backend)
-        else:
-            data_tree, model_tree = targets
-        return cls(
-            data=data,
-            model=model,
-            data_tree=data_tree,
-            model_tree=model_tree,
-            data_mean=centroid(data),
-            model_mean=centroid(model),
-            data_second_moment=data.T @ data / data.shape[0],
-            data_spacing=data_tree.spacing(_SPACING_SAMPLE) if data_tree else 0.0,
-            model_spacing=model_tree.spacing(_SPACING_SAMPLE),
-        )
-
-    def motion(self, old: PoseBatch, new: PoseBatch) -> FloatArray:
-        """RMS over the data of ||new(a) - old(a)||, per pose."""
-        return old.motion(new, self.data_mean, self.data_second_moment)
-
-
-@dataclass(frozen=True)
-class _Pass:
-    """One correspondence pass for K poses: each direction's pairs, their selection, the merit."""
-
-    forward_index: np.ndarray  # (K, n_data): model point paired with each data point
-    forward: Selection
-    backward_index: np.ndarray | None  # (K, n_model): data point paired with each model point
-    backward: Selection | None
-    merit: FloatArray  # (K,): what the loop minimises, in distance units (see _Solver.merit)
-
-    def assign(self, rows: np.ndarray, other: _Pass) -> _Pass:
-        """A copy with the pairs of poses ``rows`` (indices) replaced by ``other``'s."""
-        forward_index = self.forward_index.copy()
-        forward_index[rows] = other.forward_index
-        backward_index, backward = self.backward_index, self.backward
-        if backward_index is not None and backward is not None:
-            assert other.backward_index is not None and other.backward is not None
-            backward_index = backward_index.copy()
-            backward_index[rows] = other.backward_index
-            backward = backward.assign(rows, other.backward)
-        merit = self.merit.copy()
-        merit[rows] = other.merit
-        return _Pass(forward_index, self.forward.assign(rows, other.forward), backward_index, backward, merit)
-
-    def rms(self, k: int = 0) -> tuple[float, float, float]:
-        """RMS of the kept pairs of pose k in the model frame: (both, forward, backward)."""
-        forward = _rms(self.forward.sum_sq[k], self.forward.kept[k])
-        if self.backward is None:
-            return forward, forward, float("nan")
-        both = _rms(
-            self.forward.sum_sq[k] + self.backward.sum_sq[k], self.forward.kept[k] + self.backward.kept[k]
-        )
-        return both, forward, _rms(self.backward.sum_sq[k], self.backward.kept[k])
-
-
-class _Pyramid:
-    """The levels of one registration, built when first used (a warm start may skip some)."""
-
-    def __init__(
-        self,
-        pyramid: list[tuple[FloatArray, FloatArray]],
-        data: FloatArray,
-        model: FloatArray,
-        bidirectional: bool,
-        config: RegistrationConfig,
-    ) -> None:
-        self._sets = pyramid
-        self._full = (data, model)
-        self._bidirectional = bidirectional
-        self._config = config
-        self._built: dict[int, _Level] = {}
-        self._targets: tuple[NearestNeighbors | None, NearestNeighbors] | None = None
-
-    def screening_level(self) -> _Level:
-        """The coarsest sets thinned on both sides, with their own small trees: hypotheses far
-        from the truth are screened where a query is cheapest. Without dense targets this is
-        level 0 itself."""
-        if not self._config.dense_targets:
-            return self[0]
-        if -1 not in self._built:
-            self._built[-1] = _Level.build(*self._sets[0], self._bidirectional, self._config.backend)
-        return self._built[-1]
-
-    def __getitem__(self, index: int) -> _Level:
-        if index not in self._built:
-            backend = self._config.backend
-            targets = None
-            if self._config.dense_targets:
-                if self._targets is None:
-                    full = _Level.build(*self._full, self._bidirectional, backend)
-                    self._targets = (full.data_tree, full.model_tree)
-                targets = self._targets
-            self._built[index] = _Level.build(*self._sets[index], self._bidirectional, backend, targets)
-        return self._built[index]
-
-
-def _final_on_dense_targets(
-    solver: _Solver, level: _Level, finalists: list[Similarity], relative_motion: float
-) -> tuple[Similarity, LevelReport, _Pass]:
-    """Run every finalist of the screening on the first dense level (the coarsest points against
-    the full sets) and keep the one that ends with the lowest merit: with exact nearest
-    neighbours the merits rank basins more reliably than on the thinned screening level."""
-    outcomes = []
-    for pose in finalists:
-        history_before = len(solver.history)
-        outcome = solver.run_level(0, level, pose, relative_motion=relative_motion)
-        outcomes.append((float(outcome[2].merit[0]), outcome, solver.history[history_before:]))
-        del solver.history[history_before:]
-    _, best, history = min(outcomes, key=lambda item: item[0])
-    solver.history.extend(history)
-    return best
-
-
-def _level_motion(config: RegistrationConfig, index: int, last: int) -> float:
-    """Convergence tolerance of level ``index`` of ``last + 1``, relative to the model's radius.
-
-    Geometric from ``coarse_relative_motion`` on the coarsest level to ``relative_motion`` on
-    the full sets: each level hands the next a start that one or two of its (more expensive)
-    iterations finish, instead of leaving the finest level to do the crawling.
-    """
-    criteria = config.criteria
-    if last == 0:
-        return criteria.relative_motion
-    fraction = index / last
-    return float(criteria.coarse_relative_motion ** (1.0 - fraction) * criteria.relative_motion**fraction)
-
-
-def _finalists(minima: list[tuple[float, Similarity]], level: _Level, tolerance: float) -> list[Similarity]:
-    """The distinct poses among ``minima`` within :data:`_FINALIST_MARGIN` of the best merit,
-    best first, at most :data:`_FINALISTS`. Poses within three tolerances, or within one point
-    spacing of the thinned level, are one minimum: hypotheses that settle into one basin stop a
-    little apart on the thinned sets, and two finalists from one basin would crowd out another
-    (a synthetic scan in its map: the right basin came fourth behind two copies of a wrong one)."""
-    chosen: list[tuple[float, Similarity]] = []
-    for value, pose in sorted(minima, key=lambda item: item[0]):
-        if chosen and value > (1.0 + _FINALIST_MARGIN) * chosen[0][0]:
-            break
-        distances = [level.motion(PoseBatch.of([pose]), PoseBatch.of([other]))[0] for _, other in chosen]
-        if all(d > max(_SIGNIFICANT * tolerance, level.model_spacing) for d in distances):
-            chosen.append((value, pose))
-        if len(chosen) == _FINALISTS:
-            break
-    return [pose for _, pose in chosen]
-
-
-def _better_half(size: int) -> int:
-    """How many of a family of ``size`` survive the rough ranking: half, at least _KEEP_PER_FAMILY."""
-    return max(_KEEP_PER_FAMILY, (size + 1) // 2)
-
-
-def _best_of_each(family: np.ndarray, merit: FloatArray, keep: int | Callable[[int], int]) -> np.ndarray:
-    """Mask of the ``keep`` lowest merits within each family (``keep(family size)`` if callable)."""
-    chosen = np.zeros(family.shape[0], dtype=bool)
-    for member in np.unique(family):
-        indices = np.flatnonzero(family == member)
-        count = keep(indices.size) if callable(keep) else keep
-        chosen[indices[np.argsort(merit[indices])[:count]]] = True
-    return chosen
-
-
-def _repeats_better(poses: PoseBatch, merit: FloatArray, level: _Level, tolerance: FloatArray) -> np.ndarray:
-    """(K,) mask of the poses within their ``tolerance`` motion of another pose with a lower merit."""
-    count = len(poses)
-    repeats = np.zeros(count, dtype=bool)
-    for k in range(count):
-        others = poses.take(np.full(count, k))
-        close = level.motion(others, poses) <= tolerance[k]
-        repeats[k] = bool(np.any(close & (merit < merit[k])))
-    return repeats
-
-
-def _rows(pairs: _Pass, rows: np.ndarray) -> _Pass:
-    """The pairs of poses ``rows`` only."""
-    backward = pairs.backward
-    return _Pass(
-        pairs.forward_index[rows],
-        Selection(
-            pairs.forward.keep[rows],
-            pairs.forward.kept[rows],
-            pairs.forward.sum_sq[rows],
-            pairs.forward.merit[rows],
-        ),
-        pairs.backward_index[rows] if pairs.backward_index is not None else None,
-        Selection(backward.keep[rows], backward.kept[rows], backward.sum_sq[rows], backward.merit[rows])
-        if backward is not None
-        else None,
-        pairs.merit[rows],
-    )
-
-
-def _rms(sum_sq: float, count: float) -> float:
-    return float(np.sqrt(sum_sq / count)) if count > 0 else float("nan")
-
-
-class _Solver:
-    """Runs one method's ICP iteration on a level, for one pose or a batch of hypotheses."""
-
-    def __init__(
-        self,
-        config: RegistrationConfig,
-        scale_bounds: tuple[float, float] | None,
-        model_radius: float,
-        start: float,
-    ) -> None:
-        self.config = config
-        self.bidirectional = config.method is Method.FRISICP
-        self.with_scale = config.method is not Method.ICP
-        self.scale_bounds = scale_bounds
-        self.model_radius = model_radius
-        self.start = start
-        self.history: list[IterationRecord] = []
-
-    def correspond(self, level: _Level, poses: PoseBatch) -> _Pass:
-        """Pair every data point with its nearest model point and (FRISICP) vice versa."""
-        count, dim = len(poses), level.data.shape[1]
-        config = self.config
-        forward_sq, forward_index = level.model_tree.query(poses.apply(level.data).reshape(-1, dim))
-        forward_sq, forward_index = forward_sq.reshape(count, -1), forward_index.reshape(count, -1)
-        forward = select_pairs(
-            forward_sq, np.full(count, level.model_spacing**2), config.overlap, config.max_distance
-        )
-        backward_index: np.ndarray | None = None
-        backward: Selection | None = None
-        if self.bidirectional:
-            assert level.data_tree is not None
-            backward_sq, backward_index = level.data_tree.query(
-                poses.apply_inverse(level.model).reshape(-1, dim)
-            )
-            # Measured in the data frame; times s gives the model frame, like the forward ones.
-            backward_sq = backward_sq.reshape(count, -1) * poses.scale[:, None] ** 2
-            backward_index = backward_index.reshape(count, -1)
-            backward = select_pairs(
-                backward_sq, (level.data_spacing * poses.scale) ** 2, config.overlap, config.max_distance
-            )
-        return _Pass(forward_index, forward, backward_index, backward, self.merit(forward, backward, poses))
-
-    def merit(self, forward: Selection, backward: Selection | None, poses: PoseBatch) -> FloatArray:
-        """sqrt of: psi_f + psi_b (estimated overlap), or the mean squared distance of the kept
-        pairs of both directions together (fixed overlap; the paper's RMS); divided by s when
-        errors are measured half-way between the frames (``symmetric``)."""
-        if self.config.overlap is None:
-            value = forward.merit + (backward.merit if backward is not None else 0.0)
-        elif backward is None:
-            value = forward.sum_sq / forward.kept
-        else:
-            value = (forward.sum_sq + backward.sum_sq) / (forward.kept + backward.kept)
-        if self.config.symmetric:
-            value = value / poses.scale
-        merit: FloatArray = np.sqrt(value)
-        return merit
-
-    def step(self, level: _Level, pairs: _Pass) -> tuple[PoseBatch, np.ndarray]:
-        """The closed-form similarity of each pose's kept pairs (Eq. 7) and which are valid."""
-        parts = [
-            PairPart(
-                level.data,
-                level.model_tree.points[pairs.forward_index],
-                pairs.forward.keep.astype(np.float64),
-            )
-        ]
-        if pairs.backward is not None and pairs.backward_index is not None:
-            assert level.data_tree is not None
-            parts.append(
-                PairPart(
-                    level.data_tree.points[pairs.backward_index],
-                    level.model,
-                    pairs.backward.keep.astype(np.float64),
-                )
-            )
-        return estimate_similarities(
-            parts,
-            with_scale=self.with_scale,
-            scale_bounds=self.scale_bounds,
-            symmetric=self.config.symmetric,
-            origin=(level.data_mean, level.model_mean),
-        )
-
-    def screen(self, level: _Level, families: list[list[Similarity]]) -> list[Similarity]:
-        """Iterate the hypotheses together with plain (or accelerated) steps until each has
-        settled into its local minimum; the distinct minima worth a closer look, best first.
-
-        Partial overlap converges slowly and not geometrically, and a wrong basin often looks
-        best early on (on smooth synthetic caps the right hypotheses overtake after 10-30
-        passes), so hypotheses are compared once settled, not after a fixed number of passes.
-        On the thinned screening level the merits of different basins can be within a few
-        percent and in the wrong order, so every distinct minimum within
-        :data:`_FINALIST_MARGIN` of the best is returned (at most :data:`_FINALISTS`), for the
-        caller to compare on dense targets. To keep the batch small:
-
-        - before the first pass, the better half of each family stays (at least
-          :data:`_KEEP_PER_FAMILY`), ranked by the merits of the starting poses on a quarter of
-          the level's points (:meth:`rough_merits`: the first pass over every start was most of
-          a full-overlap cold start's screening); after :data:`_SCREEN_PRUNE_FROM` passes only
-          the :data:`_KEEP_PER_FAMILY` best (members differ in one parameter, e.g. the scale of
-          the data in place; their early merits rank them, but keeping three on the starting
-          poses' merits alone dropped the right scale of a map onto its scan);
-        - from then on, one whose merit is :data:`_SCREEN_PRUNE_RATIO` times the best's leaves
-          (on 248 recorded screenings of the bunny cases the eventual winner was within 4 % of
-          the best from the second pass on; on synthetic caps within 25 %);
-        - from the pass after, one outside :data:`_FINALIST_MARGIN` of the best that falls too
-          slowly to get inside it within :data:`_SCREEN_HORIZON` passes leaves (on a scan in its
-          map, the principal-axes starts crawled at 1.7-2x the best merit for 30 passes and
-          made up most of the screening's cost);
-        - one within three standard errors of the pose of a better one, moving or settled,
-          leaves (the same basin);
-        - one that settles (its step moves the data by less than ``coarse_relative_motion``)
-          leaves the batch and joins the settled minima.
-        """
-        hypotheses = [sim for family in families for sim in family]
-        family = np.concatenate([np.full(len(f), k) for k, f in enumerate(families)])
-        chosen = _best_of_each(family, self.rough_merits(level, hypotheses), _better_half)
-        hypotheses = [sim for sim, keep in zip(hypotheses, chosen, strict=True) if keep]
-        family = family[chosen]
-        poses = PoseBatch.of(hypotheses)
-        pairs = self.correspond(level, poses)
-        tolerance = self.config.criteria.coarse_relative_motion * self.model_radius
-        minima: list[tuple[float, Similarity]] = []  # settled hypotheses: (merit, pose)
-        accelerators = (
-            [AndersonAccelerator(sim, level.data_mean, self.model_radius) for sim in hypotheses]
-            if self.config.acceleration
-            else []
-        )
-        previous = np.full(len(poses), np.inf)  # each hypothesis's merit one pass earlier
-        for iteration in range(1, _SCREENING_PASSES + 1):
-            merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
-            stepped, valid = self.step(level, pairs)
-            stepped = poses.where(valid, stepped)
-            settled = (level.motion(poses, stepped) <= tolerance) | ~valid
-            noise = _SIGNIFICANT * np.maximum(tolerance, self.standard_errors(pairs))
-            minima += [(float(merit[k]), poses[int(k)]) for k in np.flatnonzero(settled & (merit < np.inf))]
-            alive = ~settled & (merit < np.inf) & ~_repeats_better(stepped, merit, level, noise)
-            for value, pose in minima:  # on its way to a settled minimum: the same basin, no better
-                near = level.motion(PoseBatch.of([pose] * len(stepped)), stepped)
-                alive &= (near > noise) | (merit < value)
-            best = min([float(merit.min())] + [value for value, _ in minima])
-            if iteration == _SCREEN_PRUNE_FROM:
-                alive &= _best_of_each(family, merit, _KEEP_PER_FAMILY)
-            if iteration >= _SCREEN_PRUNE_FROM:
-                alive &= merit <= _SCREEN_PRUNE_RATIO * best
-            if iteration > _SCREEN_PRUNE_FROM:  # too slow to become a finalist
-                finalist = (1.0 + _FINALIST_MARGIN) * best
-                alive &= (merit <= finalist) | (merit - finalist < _SCREEN_HORIZON * (previous - merit))
-            if not alive.any():
-                return _finalists(minima, level, tolerance)
-            kept = np.flatnonzero(alive)
-            family = family[alive]
-            previous = merit[kept]
-            accelerators = [accelerators[k] for k in kept] if accelerators else []
-            poses, pairs = self._screening_step(
-                level, poses.take(kept), stepped.take(kept), merit[kept], accelerators, iteration
-            )
-        merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
-        minima += [(float(merit[k]), poses[k]) for k in range(len(poses)) if merit[k] < np.inf]
-        return _finalists(minima, level, tolerance)
-
-    def settle(
-        self, level: _Level, poses: PoseBatch, tolerance: float, passes: int
-    ) -> tuple[PoseBatch, FloatArray]:
-        """Plain ICP steps for every pose of the batch until each moves the data by less than
-        ``tolerance`` (at most ``passes``); the poses reached and their merits."""
-        pairs = self.correspond(level, poses)
-        merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
-        active = np.flatnonzero(np.isfinite(merit))
-        pairs = _rows(pairs, active)  # the pairs of the active poses, in their order
-        for _ in range(passes):
-            if active.size == 0:
-                break
-            current = poses.take(active)
-            stepped, valid = self.step(level, pairs)
-            moved = level.motion(current, stepped)
-            poses = poses.assign(active, current.where(valid, stepped))
-            pairs = self.correspond(level, poses.take(active))
-            merit[active] = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
-            keep = np.flatnonzero(valid & (moved > tolerance))
-            pairs, active = _rows(pairs, keep), active[keep]
-        return poses, merit
-
-    def rough_merits(self, level: _Level, hypotheses: list[Similarity]) -> FloatArray:
-        """Merit of each starting pose on every :data:`_ROUGH_EVERY`-th point of ``level`` (fewer
-        skipped on small sets, so each keeps at least :data:`_ROUGH_POINTS` points). The level is a
-        random subset of each set, in storage order, so every k-th of its points is one too."""
-        smaller = min(level.data.shape[0], level.model.shape[0])
-        every = max(1, min(_ROUGH_EVERY, smaller // _ROUGH_POINTS))
-        rough = _Level.build(
-            level.data[::every], level.model[::every], self.bidirectional, self.config.backend
-        )
-        merit = self.correspond(rough, PoseBatch.of(hypotheses)).merit
-        return np.where(np.isfinite(merit), merit, np.inf)
-
-    def _screening_step(
-        self,
-        level: _Level,
-        poses: PoseBatch,
-        stepped: PoseBatch,
-        merit: FloatArray,
-        accelerators: list[AndersonAccelerator],
-        iteration: int,
-    ) -> tuple[PoseBatch, _Pass]:
-        """Move every hypothesis on, by an Anderson proposal where one lowers its merit, else by
-        its plain step; return the new poses and their pairs (as ``run_level`` does for one)."""
-        proposals: dict[int, Similarity] = {}
-        if accelerators and iteration >= _ACCELERATE_FROM:
-            for k, accelerator in enumerate(accelerators):
-                proposal = accelerator.propose(poses[k], stepped[k])
-                if proposal is not None:
-                    proposals[k] = proposal
-        if not proposals:
-            return stepped, self.correspond(level, stepped)
-        rows = np.fromiter(proposals, dtype=np.int64)
-        candidates = stepped.assign(rows, PoseBatch.of(list(proposals.values())))
-        pairs = self.correspond(level, candidates)
-        rejected = rows[~(pairs.merit[rows] < merit[rows])]
-        if rejected.size == 0:
-            return candidates, pairs
-        for k in rejected:
-            accelerators[k].reset()  # extrapolation overshot: take the plain step
-        plain = stepped.take(rejected)
-        return candidates.assign(rejected, plain), pairs.assign(rejected, self.correspond(level, plain))
-
-    def run_level(
-        self,
-        index: int,
-        level: _Level,
-        sim: Similarity,
-        *,
-        relative_motion: float,
-        accelerate_from: int = _ACCELERATE_FROM,
-    ) -> tuple[Similarity, LevelReport, _Pass]:
-        """Iterate correspond -> solve on one level until the similarity moves by less than
-        ``relative_motion`` times the model's radius (or the merit stops falling).
-        ``accelerate_from``: the first iteration that may take an Anderson step."""
-        criteria = self.config.criteria
-        tolerance = relative_motion * self.model_radius
-        accelerator = (
-            AndersonAccelerator(sim, level.data_mean, self.model_radius) if self.config.acceleration else None
-        )
-        pose = PoseBatch.of([sim])
-        pairs = self.correspond(level, pose)
-        merit = float(pairs.merit[0])
-        converged = False
-        iterations = 0
-        for iterations in range(1, criteria.max_iterations + 1):
-            self._record(index, iterations, pairs)
-            stepped, valid = self.step(level, pairs)
-            if not valid[0]:
-                break  # degenerate pairs (e.g. a collapsed scale): keep the last valid similarity
-            # Below the noise: a level's first step within three standard errors of the estimate
-            # says its start is already as good as this level can tell (a warm start, a finer
-            # level after a converged coarser one); once it has moved, it iterates down to one.
-            # The coarsest level decides the basin: it always runs down to its tolerance.
-            significant = 0.0 if index == 0 else _SIGNIFICANT if iterations == 1 else 1.0
-            if level.motion(pose, stepped)[0] <= max(tolerance, significant * self.standard_error(pairs)):
-                # Converged. The step moved every point by less than the tolerance, so the errors
-                # of the last pass are the returned similarity's: no pass to re-measure them.
-                pose, converged = stepped, True
-                break
-            # Extrapolate only once a level crawls: on levels that converge in a couple of
-            # steps, a rejected proposal would cost a wasted correspondence pass.
-            proposal = (
-                accelerator.propose(pose[0], stepped[0])
-                if accelerator and iterations >= accelerate_from
-                else None
-            )
-            if accelerator is not None and proposal is not None:
-                proposed = PoseBatch.of([proposal])
-                proposal_pairs = self.correspond(level, proposed)
-                if proposal_pairs.merit[0] < merit:
-                    pose, pairs, merit = proposed, proposal_pairs, float(proposal_pairs.merit[0])
-                    continue
-                accelerator.reset()  # extrapolation overshot: take the plain step
-            previous = merit
-            pose = stepped
-            pairs = self.correspond(level, pose)
-            merit = float(pairs.merit[0])
-            if previous - merit <= criteria.relative_rmse * previous:
-                converged = True
-                break
-        report = LevelReport(level.data.shape[0], level.model.shape[0], iterations, converged, pairs.rms()[0])
-        return pose[0], report, pairs
-
-    def standard_error(self, pairs: _Pass) -> float:
-        """Standard error of the estimate of pose 0 (see :meth:`standard_errors`)."""
-        return float(self.standard_errors(pairs)[0])
-
-    def standard_errors(self, pairs: _Pass) -> FloatArray:
-        """Standard error of each pose's estimate from one pass, RMS of its kept pairs / sqrt(their
-        number): the noise floor of the convergence test (0 unless ``criteria.noise_floor``)."""
-        if not self.config.criteria.noise_floor:
-            return np.zeros(pairs.merit.shape[0])
-        kept, sum_sq = pairs.forward.kept, pairs.forward.sum_sq
-        if pairs.backward is not None:
-            kept, sum_sq = kept + pairs.backward.kept, sum_sq + pairs.backward.sum_sq
-        with np.errstate(invalid="ignore", divide="ignore"):
-            error: FloatArray = np.where(kept > 0, np.sqrt(sum_sq) / kept, 0.0)
-        return error
-
-    def _record(self, level: int, iteration: int, pairs: _Pass) -> None:
-        both, forward, backward = pairs.rms()
-        self.history.append(
-            IterationRecord(level, iteration, both, forward, backward, time.perf_counter() - self.start)
-        )
 
 
 def register(
@@ -666,52 +107,69 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
     scale_bounds = (
         covariance_scale_bounds(data_set, model_set) if config.method is Method.BOUNDED_ICP else None
     )
-    solver = _Solver(config, scale_bounds, model_radius, start)
+    solver = Solver(config, scale_bounds, model_radius, start)
     bidirectional = config.method is Method.FRISICP
     last = len(pyramid) - 1
 
-    levels = _Pyramid(pyramid, data_set, model_set, bidirectional, config)
+    levels = Pyramid(pyramid, data_set, model_set, bidirectional, config)
     families = initial_hypotheses(data_set, model_set, config, scale_bounds)
     finalists = [families[0][0]]
     if sum(len(family) for family in families) > 1:
         finalists = solver.screen(levels.screening_level(), families)
     reports: list[LevelReport] = []
-    sim, first, accelerate_from = finalists[0], 0, _ACCELERATE_FROM
+    sim, first, accelerate_from = finalists[0], 0, ACCELERATE_FROM
+    runners_up: list[Similarity] = []
     if config.initial is not None and config.dense_targets and last > 0:
         # Tracking: no hypotheses to screen, so the thinned screening level is skipped; the warm
         # start converges on the first dense level (its coarsest points against the full sets:
         # exact neighbours, so no thinning bias for the finer levels to undo, and one cheap pass
         # when the start is already that close), then refines.
         sim, report, pairs = solver.run_level(
-            0, levels[0], sim, relative_motion=_level_motion(config, 0, last)
+            0, levels[0], sim, relative_motion=level_motion(config, 0, last)
         )
-        reports, first, accelerate_from = [report], 1, _ACCELERATE_FROM_TRACKING
+        reports, first, accelerate_from = [report], 1, ACCELERATE_FROM_TRACKING
     elif len(finalists) > 1:
-        sim, report, pairs = _final_on_dense_targets(
-            solver, levels[0], finalists, _level_motion(config, 0, last)
+        (sim, report, pairs), runners_up = compare_finalists(
+            solver, levels[0], finalists, level_motion(config, 0, last)
         )
         reports, first = [report], 1
-    for index in range(first, last + 1):
+    # The full sets are solved by point-to-plane steps (frisicp_core.refine) when polishing; ICP
+    # runs the levels above them (all of them when the sets are small enough for one level).
+    polishing = bidirectional and config.polish
+    icp_last = last - 1 if polishing and last > 0 else last
+    for index in range(first, icp_last + 1):
         sim, report, pairs = solver.run_level(
             index,
             levels[index],
             sim,
-            relative_motion=_level_motion(config, index, last),
+            relative_motion=level_motion(config, index, last),
             accelerate_from=accelerate_from,
         )
         reports.append(report)
 
     competitor: Competitor | None = None
-    if config.method is Method.FRISICP and config.initial is None and config.probe:
-        refine = _Refiner(solver, levels, config, last)
-        competitor, better = _probe(refine, sim, float(pairs.merit[0]), data_set, model_set, config)
+    if bidirectional and config.initial is None and config.probe:
+        refine = _Refiner(solver, levels, config, icp_last)
+        # Clouds that cover each other are probed only against the screening's runners-up: a
+        # distinct pose fitting as well needs a symmetry, which the principal-axes hypotheses
+        # meet, or a continuous one, which the covariance shows.
+        assert pairs.backward is not None
+        complete = min(pairs.forward.fraction[0], pairs.backward.fraction[0]) >= _COMPLETE
+        competitor, better = _probe(refine, sim, pairs, data_set, model_set, config, runners_up, complete)
         if better is not None:
-            sim, pairs, more = better
-            reports.extend(more)
-            competitor, _ = _probe(refine, sim, float(pairs.merit[0]), data_set, model_set, config)
+            sim, pairs = better
+            competitor, _ = _probe(refine, sim, pairs, data_set, model_set, config, [], complete)
+    rms, forward_rms, backward_rms = pairs.rms()
+    overlap_forward = float(pairs.forward.fraction[0])
+    overlap_backward = float(pairs.backward.fraction[0]) if pairs.backward is not None else float("nan")
+    kept = pairs.forward.kept[0] + (pairs.backward.kept[0] if pairs.backward is not None else 0.0)
+    fitness = float(kept) / (
+        pairs.forward.keep.shape[1] + (pairs.backward.keep.shape[1] if pairs.backward else 0)
+    )
+    final = levels[last]
+    data_centroid = centroid(data_set)
     uncertainty: Uncertainty | None = None
-    if bidirectional and config.polish:
-        final = levels[last]
+    if polishing:
         assert final.data_tree is not None
         sets = Sets(
             final.data_tree,
@@ -719,19 +177,40 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
             final.data_spacing,
             final.model_spacing,
             ModelNormals(final.model_tree),
+            overlap=config.overlap,
+            max_distance=config.max_distance,
         )
-        data_centroid = centroid(data_set)
-        sim, plane = polish(sim, sets, data_centroid)
+        polished = polish(
+            sim,
+            sets,
+            data_centroid,
+            tolerance=level_motion(config, last, last) * model_radius,
+            noise_floor=config.criteria.noise_floor,
+        )
+        sim, plane = polished.similarity, polished.pairs
+        for iteration, plane_rms in enumerate(polished.history, start=1):
+            solver.history.append(
+                IterationRecord(
+                    last, iteration, plane_rms, float("nan"), float("nan"), time.perf_counter() - start
+                )
+            )
+        rms, forward_rms, backward_rms = plane.rms()
+        overlap_forward, overlap_backward = plane.overlaps
+        fitness = (plane.forward_sq.size + plane.backward_sq.size) / max(
+            plane.forward_sampled + plane.backward_sampled, 1
+        )
+        report = LevelReport(
+            final.data.shape[0], final.model.shape[0], len(polished.history), polished.converged, rms
+        )
+        if last == 0:  # one level: ICP and the steps shared it
+            icp = reports.pop()
+            report = replace(report, iterations=icp.iterations + report.iterations)
+        reports.append(report)
         uncertainty = uncertainty_of(sim, plane, sets, data_centroid, rng)
     fit: Fit | None = None
     if bidirectional:
-        final = levels[last]
         assert final.data_tree is not None
         fit = measure_fit(sim, final.data_tree, final.model_tree, final.data_spacing, final.model_spacing)
-    rms, forward_rms, backward_rms = pairs.rms()
-    overlap_forward = float(pairs.forward.fraction[0])
-    overlap_backward = float(pairs.backward.fraction[0]) if pairs.backward is not None else float("nan")
-    kept = pairs.forward.kept[0] + (pairs.backward.kept[0] if pairs.backward is not None else 0.0)
     verdict = judge(
         sim,
         converged=reports[-1].converged,
@@ -757,7 +236,7 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
         rms=rms,
         forward_rms=forward_rms,
         backward_rms=backward_rms,
-        fitness=float(kept) / (data_set.shape[0] + (model_set.shape[0] if bidirectional else 0)),
+        fitness=fitness,
         converged=reports[-1].converged,
         levels=tuple(reports),
         history=tuple(solver.history),
@@ -777,68 +256,75 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
 class _Refiner:
     """Runs a pose down the levels from the first dense one, as the answer was."""
 
-    solver: _Solver
-    levels: _Pyramid
+    solver: Solver
+    levels: Pyramid
     config: RegistrationConfig
     last: int
 
-    def settle_first(self, starts: list[Similarity]) -> tuple[PoseBatch, FloatArray]:
-        """Every start settled on the first dense level (plain steps, batched)."""
-        tolerance = _level_motion(self.config, 0, self.last) * self.solver.model_radius
-        return self.solver.settle(self.levels[0], PoseBatch.of(starts), tolerance, _PROBE_PASSES)
+    def settle_rough(self, starts: list[Similarity]) -> tuple[PoseBatch, FloatArray]:
+        """Every start settled on the thinned screening level (plain steps, batched): cheap, and
+        good enough to nominate candidates for :meth:`down`."""
+        tolerance = self.config.criteria.coarse_relative_motion * self.solver.model_radius
+        level = self.levels.screening_level()
+        return self.solver.settle(level, PoseBatch.of(starts), tolerance, _PROBE_PASSES)
 
-    def down(self, sim: Similarity) -> tuple[Similarity, _Pass, list[LevelReport]]:
-        """``sim`` refined on the finer levels; its final pairs (their merit: the full sets')."""
+    def down(self, sim: Similarity) -> tuple[Similarity, Pairs]:
+        """``sim`` run down the levels as the answer was; its final pairs (the merit to compare)."""
         history = len(self.solver.history)
-        reports = []
-        pairs = self.solver.correspond(self.levels[0], PoseBatch.of([sim]))
-        for index in range(1, self.last + 1):
-            sim, report, pairs = self.solver.run_level(
-                index, self.levels[index], sim, relative_motion=_level_motion(self.config, index, self.last)
+        for index in range(self.last + 1):
+            sim, _, pairs = self.solver.run_level(
+                index, self.levels[index], sim, relative_motion=level_motion(self.config, index, self.last)
             )
-            reports.append(report)
         del self.solver.history[history:]
-        return sim, pairs, reports
+        return sim, pairs
 
 
 def _probe(
     refine: _Refiner,
     sim: Similarity,
-    merit: float,
+    pairs: Pairs,
     data: FloatArray,
     model: FloatArray,
     config: RegistrationConfig,
-) -> tuple[Competitor | None, tuple[Similarity, _Pass, list[LevelReport]] | None]:
+    runners_up: list[Similarity],
+    complete: bool,
+) -> tuple[Competitor | None, tuple[Similarity, Pairs] | None]:
     """Probe the answer ``sim`` (final merit ``merit``; :mod:`frisicp_core.ambiguity`): starts
-    around it settle on the first dense level; those that end distinct from the answer settled
-    there, within the margin or better, are refined down the levels like the answer and compared
-    with it on the full sets. Returns the closest competitor within the margin, if any, and a
-    distinct pose that fits clearly better (refined: pose, final pairs, level reports), if any."""
+    around it settle on the screening level; those that end distinct from the answer settled
+    there and within :data:`_NOMINATE` of its merit there are run down the levels like the
+    answer and compared with it on the finest level ICP ran. Returns the closest competitor
+    within the margin, if any, and a distinct pose that fits clearly better (with its final
+    pairs), if any. The screening's ``runners_up`` are always run down; the probes only when the
+    clouds are not ``complete``."""
+    merit = float(pairs.merit[0])
     centre = centroid(data)
-    starts = [sim, *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data))]
-    poses, merits = refine.settle_first(starts)
     diagonal = float(np.linalg.norm(model.max(axis=0) - model.min(axis=0)))
-    settled = poses[0]
-    candidates = sorted(
-        (float(merits[k]) / float(merits[0]), k)
-        for k in range(1, len(starts))
-        if np.isfinite(merits[k])
-        and float(merits[k]) <= (1.0 + AMBIGUITY_MARGIN) * float(merits[0])
-        and separation(poses[k], settled, centre, diagonal, config.tolerance) > 1.0
-    )
+    nominated = list(runners_up)
+    if not complete:
+        starts = [sim, *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data))]
+        poses, merits = refine.settle_rough(starts)
+        settled = poses[0]
+        ranked = sorted(
+            (float(merits[k]) / float(merits[0]), k)
+            for k in range(1, len(starts))
+            if np.isfinite(merits[k])
+            and float(merits[k]) <= (1.0 + _NOMINATE) * float(merits[0])
+            and separation(poses[k], settled, centre, diagonal, config.tolerance) > 1.0
+        )
+        nominated += [poses[k] for _, k in ranked]
     competitor: Competitor | None = None
     kept: list[Similarity] = []
-    for _, k in candidates:
-        if any(separation(poses[k], other, centre, diagonal, config.tolerance) <= 1.0 for other in kept):
-            continue  # the same basin as a candidate already refined
-        kept.append(poses[k])
-        refined, pairs, reports = refine.down(poses[k])
+    for start in nominated:
+        if any(separation(start, other, centre, diagonal, config.tolerance) <= 1.0 for other in kept):
+            continue  # the same basin as a candidate already run down
+        kept.append(start)
+        refined, pairs = refine.down(start)
         apart = separation(refined, sim, centre, diagonal, config.tolerance)
         ratio = float(pairs.merit[0]) / merit
         if apart <= 1.0 or not np.isfinite(ratio):
             continue
         if ratio < 1.0 - AMBIGUITY_MARGIN:
-            return None, (refined, pairs, reports)
+            return None, (refined, pairs)
         if ratio <= 1.0 + AMBIGUITY_MARGIN and (competitor is None or ratio < competitor.merit_ratio):
             competitor = Competitor(refined, ratio, apart)
         if len(kept) == _PROBE_REFINED:

@@ -14,7 +14,9 @@ from .uncertainty import Uncertainty
 
 @dataclass(frozen=True)
 class IterationRecord:
-    """One iteration: errors measured with the similarity in force at its start."""
+    """One iteration: errors measured with the similarity in force at its start. On the level that
+    point-to-plane steps solve (:mod:`frisicp_core.refine`), ``rms`` is the RMS point-to-plane
+    residual of the kept pairs and the per-direction errors are NaN."""
 
     level: int
     iteration: int

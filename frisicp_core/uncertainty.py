@@ -48,7 +48,7 @@ from .rotations import generators, vector_size
 from .similarity import FloatArray, Similarity
 
 # Neighbours whose covariance gives a point's surface normal.
-NORMAL_NEIGHBOURS = 12
+NORMAL_NEIGHBOURS = 10
 # Spatial blocks of the sandwich estimator: enough for the sum over blocks to estimate a p x p
 # covariance (p = 7 in 3-D), few enough that each spans many correlated pairs.
 _TARGET_BLOCKS = 64
@@ -203,7 +203,8 @@ def _blocks(points: FloatArray) -> np.ndarray:
     labels = np.zeros(points.shape[0], dtype=np.int64)
     while cells_per_axis <= 1024:
         cells = np.minimum(((points - low) / span * cells_per_axis).astype(np.int64), cells_per_axis - 1)
-        _, labels = np.unique(cells, axis=0, return_inverse=True)
+        key = cells @ (cells_per_axis ** np.arange(points.shape[1], dtype=np.int64))
+        _, labels = np.unique(key, return_inverse=True)
         if labels.max() + 1 >= _TARGET_BLOCKS:
             break
         cells_per_axis *= 2

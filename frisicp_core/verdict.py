@@ -130,6 +130,11 @@ def judge(
     return Verdict(not problems, "; ".join(problems))
 
 
+def within_tolerance(uncertainty: Uncertainty, tolerance: Tolerance, diagonal: float) -> bool:
+    """True when :data:`SIGMAS` sigmas of every component lie within its tolerance."""
+    return not _uncertain(uncertainty, tolerance, diagonal)
+
+
 def _uncertain(uncertainty: Uncertainty, tolerance: Tolerance, diagonal: float) -> list[str]:
     """The components whose SIGMAS-sigma exceeds its tolerance."""
     checks = (

