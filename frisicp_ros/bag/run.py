@@ -34,7 +34,7 @@ from frisicp_ros.stream.loop import (
     in_chunks,
     run_stream,
 )
-from frisicp_ros.stream.outputs import ALWAYS_PUBLISHED, build_outputs
+from frisicp_ros.stream.outputs import ALWAYS_PUBLISHED, build_outputs, scaled_frame, tf_message
 from frisicp_ros.stream.pipeline import PairOutcome, Registered
 from frisicp_ros.stream.settings import PipelineSettings
 
@@ -167,8 +167,11 @@ def _register_bag(
     def emit(pair: BagPair, outcome: PairOutcome) -> None:
         results.write(pair_record(pair, outcome))
         if result_bag is not None and isinstance(outcome, Registered) and outcome.reliable:
+            child = scaled_frame(outcome.data_frame, settings.tf_child_frame)
             result_bag.write(
-                pair.data.bag_ns, build_outputs(outcome, pair.data_cloud, result_bag.types, topics)
+                pair.data.bag_ns,
+                build_outputs(outcome, pair.data_cloud, result_bag.types, topics),
+                tf_message(outcome, child, result_bag.types),
             )
         stats.add(pair, outcome)
         progress.update(pair.data.ordinal + 1 - progress.n)

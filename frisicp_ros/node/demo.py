@@ -134,11 +134,10 @@ def main(argv: list[str] | None = None) -> int:
 def run_stream(args: argparse.Namespace) -> tuple[list[tuple[Similarity, Similarity, float, float]], int]:
     """Publish for ``args.duration`` s; return (truth, estimate, rms, latency) per answered cloud."""
     import rclpy
-    from geometry_msgs.msg import TransformStamped
+    from geometry_msgs.msg import TransformStamped, Vector3Stamped
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import PointCloud2
-    from std_msgs.msg import Float64
 
     from frisicp_ros.stream.outputs import rclpy_message_types
     from frisicp_ros.stream.pointcloud2 import points_to_parts
@@ -166,11 +165,11 @@ def run_stream(args: argparse.Namespace) -> tuple[list[tuple[Similarity, Similar
     # scale and rms arrive in the same order as the transforms (same publisher thread, one each)
     publisher_node.create_subscription(TransformStamped, "/frisicp/transform", on_transform, 10)
 
-    def collect(values: list[float]) -> Callable[[Float64], None]:
-        return lambda msg: values.append(msg.data)
+    def collect(values: list[float]) -> Callable[[Vector3Stamped], None]:
+        return lambda msg: values.append(msg.vector.x)
 
-    publisher_node.create_subscription(Float64, "/frisicp/scale", collect(scales), 10)
-    publisher_node.create_subscription(Float64, "/frisicp/rms", collect(rms), 10)
+    publisher_node.create_subscription(Vector3Stamped, "/frisicp/scale", collect(scales), 10)
+    publisher_node.create_subscription(Vector3Stamped, "/frisicp/rms", collect(rms), 10)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(publisher_node)
     spinner = threading.Thread(target=executor.spin, daemon=True)

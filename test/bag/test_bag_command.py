@@ -64,6 +64,10 @@ def bag_args(bag: Path, *extra: str) -> list[str]:
     return ["bag", str(bag), "--model-topic", MODEL_TOPIC, "--data-topic", DATA_TOPIC, *extra]
 
 
+def stamp_ns_of(header) -> int:
+    return header.stamp.sec * 10**9 + header.stamp.nanosec
+
+
 def read_jsonl(text: str) -> list[dict]:
     return [json.loads(line) for line in text.splitlines() if line.strip()]
 
@@ -187,10 +191,12 @@ def test_result_bag_reads_back_with_the_node_topics_and_original_stamps(capsys, 
     with AnyReader([out_bag]) as reader:
         assert {t: i.msgtype for t, i in reader.topics.items()} == {
             "/frisicp/transform": "geometry_msgs/msg/TransformStamped",
-            "/frisicp/scale": "std_msgs/msg/Float64",
-            "/frisicp/rms": "std_msgs/msg/Float64",
+            "/frisicp/pose": "geometry_msgs/msg/PoseWithCovarianceStamped",
+            "/frisicp/scale": "geometry_msgs/msg/Vector3Stamped",
+            "/frisicp/rms": "geometry_msgs/msg/Vector3Stamped",
             "/frisicp/similarity": "std_msgs/msg/Float64MultiArray",
             "/frisicp/aligned": "sensor_msgs/msg/PointCloud2",
+            "/tf": "tf2_msgs/msg/TFMessage",
         }
         seen: dict[str, list[int]] = {}
         for connection, stamp_ns, raw in reader.messages():
@@ -198,6 +204,7 @@ def test_result_bag_reads_back_with_the_node_topics_and_original_stamps(capsys, 
             record = records[stamp_ns]  # log time = the data cloud's bag time
             seen.setdefault(connection.topic, []).append(stamp_ns)
             suffix = connection.topic.rsplit("/", 1)[1]
+            header_ns = None
             if suffix == "transform":
                 header_ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
                 assert header_ns == record["header_stamp_ns"]
@@ -206,10 +213,32 @@ def test_result_bag_reads_back_with_the_node_topics_and_original_stamps(capsys, 
                 np.testing.assert_allclose([q.x, q.y, q.z, q.w], record["quaternion_xyzw"], atol=1e-12)
                 t = msg.transform.translation
                 np.testing.assert_allclose([t.x, t.y, t.z], record["translation"], atol=1e-12)
+            elif suffix == "pose":
+                assert (
+                    stamp_ns_of(msg.header) == record["header_stamp_ns"]
+                    and msg.header.frame_id == MODEL_FRAME
+                )
+                p, q = msg.pose.pose.position, msg.pose.pose.orientation
+                np.testing.assert_allclose([p.x, p.y, p.z], record["translation"], atol=1e-12)
+                np.testing.assert_allclose([q.x, q.y, q.z, q.w], record["quaternion_xyzw"], atol=1e-12)
+                covariance = np.asarray(msg.pose.covariance).reshape(6, 6)
+                assert np.all(np.diag(covariance) > 0) and np.allclose(covariance, covariance.T)
             elif suffix == "scale":
-                assert msg.data == pytest.approx(record["scale"], rel=1e-12)
+                assert stamp_ns_of(msg.header) == record["header_stamp_ns"]
+                assert msg.vector.x == pytest.approx(record["scale"], rel=1e-12)
+                sigma = record["uncertainty"]["scale"]
+                assert (msg.vector.y, msg.vector.z) == pytest.approx((record["scale"] * sigma, sigma))
             elif suffix == "rms":
-                assert msg.data == pytest.approx(record["rms"], rel=1e-12)
+                assert msg.vector.x == pytest.approx(record["rms"], rel=1e-12)
+            elif suffix == "tf":
+                (transform,) = msg.transforms
+                assert stamp_ns_of(transform.header) == record["header_stamp_ns"]
+                assert (transform.header.frame_id, transform.child_frame_id) == (
+                    MODEL_FRAME,
+                    f"{DATA_FRAME}_scaled",
+                )
+                t = transform.transform.translation
+                np.testing.assert_allclose([t.x, t.y, t.z], record["translation"], atol=1e-12)
             elif suffix == "similarity":
                 matrix = np.asarray(msg.data).reshape(4, 4)
                 estimate = Similarity.from_matrix(matrix)
@@ -240,10 +269,12 @@ def test_no_aligned_leaves_the_cloud_topic_out(capsys, bags, tmp_path):
     assert code == 0, err
     with AnyReader([out_bag]) as reader:
         assert sorted(reader.topics) == [
+            "/robot/frisicp/pose",
             "/robot/frisicp/rms",
             "/robot/frisicp/scale",
             "/robot/frisicp/similarity",
             "/robot/frisicp/transform",
+            "/tf",
         ]
         assert all(info.msgcount == 4 for info in reader.topics.values())
 

@@ -17,10 +17,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rclpy
-from geometry_msgs.msg import TransformStamped
+from geometry_msgs.msg import TransformStamped, Vector3Stamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from std_msgs.msg import Float64
 from support.bags import DATA_FRAME, DATA_TOPIC, MODEL_FRAME, MODEL_TOPIC, standard_scenario, write_rosbag2
 from support.ros import wait_until
 
@@ -51,14 +50,14 @@ class OutputProbe:
 
     def __init__(self) -> None:
         self.transforms: list[TransformStamped] = []
-        self.scales: list[Float64] = []
+        self.scales: list[Vector3Stamped] = []
         self.arrivals: list[float] = []  # time.monotonic() of each transform
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
         self.node = rclpy.create_node("replay_probe", context=self.context)
         reliable = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
         self.node.create_subscription(TransformStamped, "/frisicp/transform", self._on_transform, reliable)
-        self.node.create_subscription(Float64, "/frisicp/scale", self.scales.append, reliable)
+        self.node.create_subscription(Vector3Stamped, "/frisicp/scale", self.scales.append, reliable)
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self.node)
         self._stop = threading.Event()
@@ -128,7 +127,7 @@ def assert_transforms_match(transforms, scales, scenario) -> None:
     for msg, scale, record in zip(transforms, scales, data, strict=False):
         assert (msg.header.frame_id, msg.child_frame_id) == (MODEL_FRAME, DATA_FRAME)
         q, t = msg.transform.rotation, msg.transform.translation
-        estimate = Similarity.from_quaternion(scale.data, [q.x, q.y, q.z, q.w], [t.x, t.y, t.z])
+        estimate = Similarity.from_quaternion(scale.vector.x, [q.x, q.y, q.z, q.w], [t.x, t.y, t.z])
         truth = scenario.truth[record.bag_ns]
         assert estimate.scale == pytest.approx(truth.scale, rel=5e-3)
         assert np.degrees(rotation_angle(estimate.rotation.T @ truth.rotation)) < 0.5
