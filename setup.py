@@ -43,7 +43,12 @@ setup(
         "tqdm>=4.60",  # progress bar of the bag mode
     ],
     extras_require={
-        "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
+        "ros": [
+            "ros-jazzy-rclpy[fastrtps]",
+            "ros-jazzy-common-interfaces",
+            "ros-jazzy-rcl-lifecycle",  # register_lifecycle_node (rclpy.lifecycle)
+            "ros-jazzy-lifecycle-msgs",
+        ],
         "test": [
             "pytest>=7",
             "mcap>=1.1",
@@ -78,6 +83,7 @@ setup(
         "console_scripts": [
             "frisicp = frisicp_ros.cli.main:main",
             "register_node = frisicp_ros.node.node:main",
+            "register_lifecycle_node = frisicp_ros.node.lifecycle:main",
             "frisicp-demo = frisicp_ros.node.demo:main",
         ],
     },

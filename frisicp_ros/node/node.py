@@ -350,8 +350,6 @@ class RegistrationParts:
         return SetParametersResult(successful=True)
 
     def _apply_parameters(self, changes: list[Parameter]) -> None:
-        if not hasattr(self, "_registrar"):  # a managed node not configured yet: read at configure
-            return
         settings = settings_from(parameters.current_values(self))
         if any(p.name in ("pairing", "sync_tolerance") for p in changes):
             with self._pairer_lock:  # the stored (latched) model stays

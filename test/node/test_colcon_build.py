@@ -106,6 +106,14 @@ class _Recorded:
         self.args, self.kwargs = args, kwargs
 
 
+class _Node(_Recorded):
+    pass
+
+
+class _LifecycleNode(_Recorded):
+    pass
+
+
 class _LaunchConfiguration(_Recorded):
     def perform(self, context):
         return context[self.args[0]]
@@ -120,7 +128,7 @@ def _fake_launch_modules(monkeypatch):
         "launch.actions": {"DeclareLaunchArgument": _Recorded, "OpaqueFunction": _Recorded},
         "launch.substitutions": {"LaunchConfiguration": _LaunchConfiguration},
         "launch_ros": {},
-        "launch_ros.actions": {"Node": _Recorded},
+        "launch_ros.actions": {"Node": _Node, "LifecycleNode": _LifecycleNode},
     }
     for name, members in modules.items():
         module = types.ModuleType(name)
@@ -128,7 +136,7 @@ def _fake_launch_modules(monkeypatch):
         monkeypatch.setitem(sys.modules, name, module)
 
 
-def _launch(monkeypatch, **given: str):
+def _launch(monkeypatch, environ=None, **given: str):
     """Run the launch file as ``ros2 launch`` would: declared defaults, then ``given``; returns
     the declared arguments and the Node's constructor arguments."""
     import runpy
@@ -137,6 +145,8 @@ def _launch(monkeypatch, **given: str):
     monkeypatch.setattr(
         "ament_index_python.packages.get_package_share_directory", lambda package: f"/share/{package}"
     )
+    if environ is not None:
+        monkeypatch.setattr(os, "environ", environ)
     namespace = runpy.run_path(str(ROOT / "launch" / "register.launch.py"))
     description = namespace["generate_launch_description"]()
     actions = description.args[0]
@@ -151,7 +161,7 @@ def _launch(monkeypatch, **given: str):
     def resolved(value):
         return value.perform(context) if isinstance(value, _LaunchConfiguration) else value
 
-    arguments = dict(node.kwargs)
+    arguments = dict(node.kwargs, node_class=type(node).__name__)
     arguments["name"], arguments["namespace"] = (
         resolved(node.kwargs["name"]),
         resolved(node.kwargs["namespace"]),
@@ -169,7 +179,7 @@ def test_launch_arguments_set_namespace_name_log_level_and_qos(monkeypatch):
     assert node["package"] == "frisicp_ros" and node["executable"] == "register_node"
     assert (node["name"], node["namespace"]) == ("frisicp", "")
     assert node["parameters"] == ["/share/frisicp_ros/config/frisicp.yaml"]  # the file's QoS stays
-    assert node["arguments"] == ["--ros-args", "--log-level", "info"]
+    assert node["arguments"] == ["--ros-args", "--log-level", "frisicp:=info"]  # the node's logger only
     assert node["remappings"] == [("model", "model"), ("data", "data")]
     assert declared["model_qos"]["choices"] == ["", *MODEL_QOS_CHOICES]  # the settings table's
     assert declared["data_qos"]["choices"] == ["", *DATA_QOS_CHOICES]
@@ -186,8 +196,48 @@ def test_launch_arguments_set_namespace_name_log_level_and_qos(monkeypatch):
     )
     assert (node["name"], node["namespace"]) == ("align", "robot1")
     assert node["parameters"] == ["/my.yaml", {"model_qos": "transient_local"}]
-    assert node["arguments"] == ["--ros-args", "--log-level", "debug"]
+    assert node["arguments"] == ["--ros-args", "--log-level", "robot1.align:=debug"]
     assert node["remappings"] == [("model", "/map"), ("data", "/points")]
+
+
+def test_launch_lifecycle_argument_starts_the_managed_node(monkeypatch):
+    _, plain = _launch(monkeypatch)
+    assert (plain["node_class"], plain["executable"]) == ("_Node", "register_node")
+    _, managed = _launch(monkeypatch, lifecycle="true", namespace="/robot1/")
+    assert (managed["node_class"], managed["executable"]) == ("_LifecycleNode", "register_lifecycle_node")
+    assert managed["arguments"] == ["--ros-args", "--log-level", "robot1.frisicp:=info"]
+    assert "register_lifecycle_node = frisicp_ros.node.lifecycle:main" in (ROOT / "setup.py").read_text()
+
+
+PROFILE = "/share/frisicp_ros/config/fastdds_large_messages.xml"
+
+
+@pytest.mark.parametrize(
+    ("environ", "choice", "expected"),
+    [
+        ({"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}, "auto", PROFILE),  # all on this machine
+        ({}, "auto", None),  # other machines may publish: shared memory only would cut them off
+        (
+            {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp"},
+            "auto",
+            None,
+        ),
+        (
+            {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "FASTRTPS_DEFAULT_PROFILES_FILE": "/mine.xml"},
+            "auto",
+            None,
+        ),
+        ({}, "true", PROFILE),
+        ({"FASTRTPS_DEFAULT_PROFILES_FILE": "/mine.xml"}, "true", None),  # the user's own wins
+        ({"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}, "false", None),
+    ],
+)
+def test_large_messages_profile_is_used_where_it_helps(monkeypatch, environ, choice, expected):
+    declared, node = _launch(monkeypatch, environ=environ, large_messages_profile=choice)
+    assert declared["large_messages_profile"]["default_value"] == "auto"
+    env = node["additional_env"] or {}
+    assert env.get("FASTRTPS_DEFAULT_PROFILES_FILE") == expected
+    assert (ROOT / "config" / "fastdds_large_messages.xml").is_file()
 
 
 def test_launch_file_starts_register_node_with_the_config_and_topic_arguments():
