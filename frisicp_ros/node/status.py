@@ -161,7 +161,7 @@ class NodeStatus:
         with self._lock:
             now = time.monotonic()
             lost, expected = self._stamp_gaps.recent
-            period = self._stamp_gaps.period_ns
+            sensor_period = self._stamp_gaps.period_ns
             period = max(now - self._reported_at, 1e-9)
             values = {
                 "model rate (Hz)": f"{self._inputs['model'] / period:.2f}",
@@ -180,7 +180,7 @@ class NodeStatus:
                 "last publish error": self._last_error,
                 "data clouds lost (stamp gaps)": str(self._stamp_gaps.lost_total),
                 "data clouds lost, recent": f"{lost} of {expected}",
-                "data period (ms)": "unknown" if period is None else f"{period * 1e-6:.1f}",
+                "data period (ms)": "unknown" if sensor_period is None else f"{sensor_period * 1e-6:.1f}",
                 "seconds since data": (
                     "never" if self._last_data_at is None else f"{now - self._last_data_at:.1f}"
                 ),
@@ -192,7 +192,7 @@ class NodeStatus:
             self._inputs.clear()
             self._registered_since_report = 0
             self._reported_at = now
-            level, message = self._level(has_model, now, lost, expected, period)
+            level, message = self._level(has_model, now, lost, expected, sensor_period)
             return StatusReport(level, message, values)
 
     def _latency_values(self) -> dict[str, str]:
@@ -257,7 +257,7 @@ class NodeStatus:
         }
 
     def _level(
-        self, has_model: bool, now: float, lost: int, expected: int, period: float | None
+        self, has_model: bool, now: float, lost: int, expected: int, sensor_period: float | None
     ) -> tuple[int, str]:
         if self._worker_stopped is not None:
             return ERROR, f"registration worker stopped: {self._worker_stopped}"
@@ -274,7 +274,7 @@ class NodeStatus:
                 " (or restart its publisher)"
             )
         if lost >= _MIN_LOST and lost > LOST_SHARE_WARN * expected:
-            sensor = "" if period is None else f", sensor period {period * 1e-6:.0f} ms"
+            sensor = "" if sensor_period is None else f", sensor period {sensor_period * 1e-6:.0f} ms"
             return WARN, (
                 f"{lost} of the last {expected} data clouds never arrived (gaps in their header"
                 f" stamps{sensor}); {self._fix_for_lost_scans}"
