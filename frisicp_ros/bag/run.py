@@ -22,6 +22,7 @@ from typing import Any
 
 from tqdm import tqdm
 
+from frisicp_core.config import InitialGuess
 from frisicp_ros.bag.jobs import ordered_map
 from frisicp_ros.bag.output import JsonLines, OutputError, ResultBag, pair_record
 from frisicp_ros.bag.pairs import BagPair, PairReading
@@ -47,6 +48,7 @@ class Destinations:
     result_bag: str | None = None  # a new rosbag2 folder with the node's output topics
     prefix: str = "/frisicp"  # namespace of the result bag's topics
     progress: bool = True
+    plot: str | None = None  # a PNG of the results over time (frisicp_ros.stream.pictures)
 
 
 @dataclass
@@ -99,18 +101,29 @@ WARM_START_CHUNK = 8
 
 
 def registration_plan(
-    settings: PipelineSettings, jobs: int, interruptible: Callable[[], AbstractContextManager[object]]
+    settings: PipelineSettings,
+    jobs: int,
+    interruptible: Callable[[], AbstractContextManager[object]],
+    guess: InitialGuess | None = None,
 ) -> tuple[Any, PairMapper[Any, BagPair], str | None]:
     """(registrar, mapper, notice) for ``jobs`` processes.
 
     One job: one pipeline for the whole bag, every pair warm-started from the one before, as in
     the node. Several jobs without warm start: independent pairs, exactly the results of one job.
     Several jobs with warm start: chunks of consecutive pairs, warm-started within each chunk;
-    the notice says so (results can differ from one job's in the last digits).
+    the notice says so (results can differ from one job's in the last digits). An initial
+    ``guess`` (one job only) steers the first pair; the pairs after it go on as above.
     """
+    if guess is not None and jobs != 1:
+        raise ValueError("an initial guess steers the first pair of one stream: use one job")
     if jobs == 1:
         one_job = functools.partial(ordered_map, jobs=1, interruptible=interruptible)
-        registrar = SequentialRegistrar(settings) if settings.warm_start else IndependentRegistrar(settings)
+        if settings.warm_start or guess is not None:
+            registrar: Any = SequentialRegistrar(settings)
+            if guess is not None:
+                registrar.request_guess(guess)
+        else:
+            registrar = IndependentRegistrar(settings)
         return registrar, one_job, None
     parallel = functools.partial(ordered_map, jobs=jobs, interruptible=interruptible)
     if not settings.warm_start:
@@ -123,7 +136,12 @@ def registration_plan(
 
 
 def register_bag(
-    reading: PairReading, settings: PipelineSettings, jobs: int, to: Destinations, data_count: int
+    reading: PairReading,
+    settings: PipelineSettings,
+    jobs: int,
+    to: Destinations,
+    data_count: int,
+    guess: InitialGuess | None = None,
 ) -> int:
     """Register every pair of ``reading``; returns the exit code (see the module docstring).
 
@@ -131,7 +149,7 @@ def register_bag(
     are created until after they are closed.
     """
     with StopRequest() as stop:
-        return _register_bag(reading, settings, jobs, to, data_count, stop)
+        return _register_bag(reading, settings, jobs, to, data_count, stop, guess)
 
 
 def _register_bag(
@@ -141,6 +159,7 @@ def _register_bag(
     to: Destinations,
     data_count: int,
     stop: StopRequest,
+    guess: InitialGuess | None,
 ) -> int:
     topics = ALWAYS_PUBLISHED + (("aligned",) if settings.publish_aligned else ())
     results = JsonLines(to.jsonl)
@@ -149,7 +168,7 @@ def _register_bag(
     except OutputError:
         results.close()
         raise
-    registrar, mapper, notice = registration_plan(settings, jobs, stop.interruptible)
+    registrar, mapper, notice = registration_plan(settings, jobs, stop.interruptible, guess)
     if notice:
         print(f"frisicp bag: {notice}", file=sys.stderr)
     stats = RunStats()
@@ -163,9 +182,13 @@ def _register_bag(
     )
     stopped: str | None = None
     code = 0
+    records: list[dict[str, object]] = []  # for the picture (small: no points)
 
     def emit(pair: BagPair, outcome: PairOutcome) -> None:
-        results.write(pair_record(pair, outcome))
+        record = pair_record(pair, outcome)
+        results.write(record)
+        if to.plot:
+            records.append(record)
         if result_bag is not None and isinstance(outcome, Registered) and outcome.reliable:
             child = scaled_frame(outcome.data_frame, settings.tf_child_frame)
             result_bag.write(
@@ -199,6 +222,14 @@ def _register_bag(
     if stopped is not None:
         print(f"frisicp bag: stopped {stats.last}: {stopped}; {kept}", file=sys.stderr)
     print(f"frisicp bag: {stats.summary(reading.pairer.unpaired_data)}", file=sys.stderr)
+    if to.plot and records:
+        from frisicp_ros.stream.pictures import stream_picture
+
+        try:
+            print(f"frisicp bag: picture {stream_picture(records, to.plot)}", file=sys.stderr)
+        except (OSError, ValueError) as err:  # the results are written: a picture failing costs no data
+            print(f"frisicp bag: cannot write the picture {to.plot}: {err}", file=sys.stderr)
+            code = code or 1
     if stats.pairs == 0 and stopped is None:
         print(f"frisicp bag: no pairs: {no_pairs_hint(settings, reading)}", file=sys.stderr)
     return code

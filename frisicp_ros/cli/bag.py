@@ -15,7 +15,7 @@ import argparse
 from pathlib import Path
 
 from frisicp_ros.cli.command import CommandError
-from frisicp_ros.cli.options import add_options, given_values
+from frisicp_ros.cli.options import add_guess_options, add_options, given_values, guess_from_args
 from frisicp_ros.stream.settings import PipelineSettings, Surface, settings_from
 
 NAME = "bag"
@@ -54,6 +54,15 @@ def configure(parser: argparse.ArgumentParser) -> None:
         " worker warm-starts within chunks of consecutive pairs (default 1)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--plot",
+        metavar="PNG",
+        help="also draw scale, rotation, RMS, registration time and every pair's verdict over the bag's"
+        " time into this PNG",
+    )
+    add_guess_options(
+        parser, "the first pair is registered around it instead of blind, and tracking follows (--jobs 1)"
+    )
     add_options(parser, Surface.BAG)
 
 
@@ -71,24 +80,29 @@ def check_arguments(args: argparse.Namespace, settings: PipelineSettings) -> Non
         raise CommandError(f"--jobs must be in [1, {MAX_JOBS}], got {args.jobs}")
     if args.out_bag and Path(args.out_bag).exists():  # before --out is truncated or the bag read
         raise CommandError(f"{args.out_bag} exists already; choose a new --out-bag folder")
+    if args.initial is not None and args.jobs != 1:
+        raise CommandError(
+            "--initial steers the first pair and tracking goes on from its result: use --jobs 1"
+        )
 
 
 def run(args: argparse.Namespace) -> int:
     settings = settings_from_args(args)
     check_arguments(args, settings)
+    guess = guess_from_args(args, settings.dims)
     # Imported here: rosbags and tqdm are needed only when a bag is read.
     from frisicp_ros.bag.output import OutputError
     from frisicp_ros.bag.pairs import PairReading
     from frisicp_ros.bag.reader import BagError, open_bag, require_pointcloud2_topic
     from frisicp_ros.bag.run import Destinations, register_bag
 
-    destinations = Destinations(args.out, args.out_bag, args.out_prefix, not args.no_progress)
+    destinations = Destinations(args.out, args.out_bag, args.out_prefix, not args.no_progress, args.plot)
     try:
         with open_bag(args.input) as reader:
             for topic in (args.model_topic, args.data_topic):
                 require_pointcloud2_topic(reader, topic)
             data_count = reader.topics[args.data_topic].msgcount
             reading = PairReading.paired_as(settings, reader, args.model_topic, args.data_topic)
-            return register_bag(reading, settings, args.jobs, destinations, data_count)
+            return register_bag(reading, settings, args.jobs, destinations, data_count, guess)
     except (BagError, OutputError) as err:
         raise CommandError(str(err)) from None

@@ -26,6 +26,7 @@ from support.bags import (
     write_ros1_bag,
     write_rosbag2,
 )
+from support.scripts import installed_script
 
 from frisicp_core import Similarity, bumpy_surface
 from frisicp_ros.cli import main as cli
@@ -62,6 +63,10 @@ def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
 
 def bag_args(bag: Path, *extra: str) -> list[str]:
     return ["bag", str(bag), "--model-topic", MODEL_TOPIC, "--data-topic", DATA_TOPIC, *extra]
+
+
+def rotation_angle_deg(matrix) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(matrix) - 1) / 2, -1.0, 1.0))))
 
 
 def stamp_ns_of(header) -> int:
@@ -482,7 +487,7 @@ def test_a_closed_results_pipe_stops_cleanly_and_keeps_the_result_bag(bags, tmp_
     """`frisicp bag ... | head -0`: no BrokenPipeError traceback, the result bag is finished."""
     out_bag = tmp_path / "piped"
     command = [
-        str(Path(sys.executable).parent / "frisicp"),
+        installed_script("frisicp"),
         *bag_args(bags["rosbags-mcap"], "--out-bag", str(out_bag), "--no-progress"),
     ]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -540,3 +545,43 @@ def test_a_damaged_but_decodable_cloud_is_marked_unreliable_not_reported_as_a_po
     assert ("unreliable 1" in err) or ("rejected 1" in err), err
     with AnyReader([out_bag]) as reader:
         assert reader.topics["/frisicp/transform"].msgcount == 2
+
+
+def test_plot_draws_the_bag_over_time(capsys, bags, tmp_path):
+    from support.png import png_size
+
+    picture = tmp_path / "over_time.png"
+    code, _, err = run_cli(capsys, *bag_args(bags["rosbags-mcap"], "--plot", str(picture)))
+    assert code == 0 and f"picture {picture}" in err, err
+    width, height = png_size(picture)
+    assert height > width > 400 and picture.stat().st_size < 200_000
+
+
+def test_initial_guess_steers_the_first_pair_and_tracking_follows(capsys, tmp_path):
+    """The turned strip of test_guess in a bag: blind, every pair is 120 degrees off (tracking
+    keeps the wrong answer); with --initial every pair is right."""
+    from support.bags import CloudRecord
+    from support.guess_scene import turned_crop_clouds
+
+    from frisicp_ros.stream.outputs import rosbags_message_types
+    from frisicp_ros.stream.pointcloud2 import cloud_to_points
+
+    model, data, truth, rough = turned_crop_clouds(rosbags_message_types())
+    records = [CloudRecord(MODEL_TOPIC, 1, 1, MODEL_FRAME, cloud_to_points(model, 3))]
+    for k, cloud in enumerate(data):
+        stamp = stamp_ns_of(cloud.header)
+        records.append(CloudRecord(DATA_TOPIC, 10 + k, stamp, DATA_FRAME, cloud_to_points(cloud, 3)))
+    bag = write_rosbag2(tmp_path / "turned", records, storage="mcap")
+    pose = " ".join(str(v) for v in [*rough.translation, *rough.quaternion()])
+
+    def errors(*extra: str) -> list[float]:
+        code, out, err = run_cli(capsys, *bag_args(bag, "--max-points", "0", *extra))
+        assert code == 0, err
+        return [rotation_angle_deg(np.array(r["rotation"]).T @ truth.rotation) for r in read_jsonl(out)]
+
+    assert all(error > 10.0 for error in errors())
+    assert all(error < 0.5 for error in errors("--initial", pose, "--initial-sigma", "5,0.1"))
+    code, _, err = run_cli(
+        capsys, *bag_args(bag, "--initial", pose, "--initial-sigma", "5,0.1", "--jobs", "2")
+    )
+    assert code == 2 and "use --jobs 1" in err

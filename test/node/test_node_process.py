@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import signal
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -22,6 +21,7 @@ from support.ros import (
     transform_similarity,
     wait_until,
 )
+from support.scripts import installed_script
 
 DOMAIN = 132
 ENV = ros_environment(DOMAIN)
@@ -35,7 +35,7 @@ from sensor_msgs.msg import PointCloud2  # noqa: E402
 pytestmark = pytest.mark.ros
 
 ROOT = Path(__file__).resolve().parents[2]
-REGISTER_NODE = Path(sys.executable).parent / "register_node"
+REGISTER_NODE = installed_script("register_node")
 LATCHED = QoSProfile(
     depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
 )

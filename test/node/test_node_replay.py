@@ -9,7 +9,6 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -22,6 +21,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from support.bags import DATA_FRAME, DATA_TOPIC, MODEL_FRAME, MODEL_TOPIC, standard_scenario, write_rosbag2
 from support.ros import wait_until
+from support.scripts import installed_script
 
 from frisicp_core import Similarity, rotation_angle
 
@@ -31,7 +31,7 @@ pytestmark = pytest.mark.ros
 ROS_SETTINGS = {"ROS_DOMAIN_ID": "207", "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
 ENV = {**{k: v for k, v in os.environ.items() if k != "ROS_STATIC_PEERS"}, **ROS_SETTINGS}
 
-REGISTER_NODE = Path(sys.executable).parent / "register_node"
+REGISTER_NODE = installed_script("register_node")
 TIMEOUT = 40.0
 
 
