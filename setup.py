@@ -27,7 +27,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
-        (f"share/{PACKAGE}/config", glob("config/*.yaml") + glob("config/*.xml")),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml") + glob("config/*.xml") + glob("config/*.rviz")),
         (f"share/{PACKAGE}/launch", glob("launch/*.launch.py")),
     ],
     python_requires=">=3.10",
@@ -41,6 +41,7 @@ setup(
         "pypcd4>=1.1",  # PCD (ascii, binary, binary_compressed) reading for the CLI
         "rosbags>=0.10",  # offline bag mode, no ROS installation needed
         "tqdm>=4.60",  # progress bar of the bag mode
+        "matplotlib>=3.6",  # pictures: frisicp register/bag --plot, frisicp-demo (imported only to draw)
     ],
     extras_require={
         "ros": [

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -83,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
         from frisicp_ros.stream.pictures import alignment_picture
 
         verdict = "reliable" if result.reliable else f"NOT reliable: {result.reason}"
-        title = f"{args.data} onto {args.model} ({verdict})"
+        title = f"{Path(args.data).name} onto {Path(args.model).name} ({verdict})"
         alignment_picture(data, model, result.similarity, args.plot, title)
     summary = result_summary(result)
     usable = result.converged and result.reliable

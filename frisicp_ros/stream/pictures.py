@@ -114,6 +114,7 @@ def stream_picture(records: Sequence[Mapping[str, Any]], path: str | Path, title
     times = [(time_of[id(r)], r["seconds"] * 1e3) for r in registered if r.get("seconds") is not None]
     if times:
         axes[3].plot(*zip(*times, strict=True), ".", color="#ff7f0e", markersize=3)
+    axes[3].set_yscale("log")
     axes[3].set_ylabel("registration time (ms)")
     verdicts = (
         ("ok", "#2ca02c", lambda r: r.get("ok")),

@@ -567,5 +567,48 @@ def _yaml_value(value: Value) -> str:
 _YAML_WORDS = {"true", "false", "yes", "no", "on", "off", "null", "y", "n"}  # would not read as strings
 
 
+# --- the parameter tables of docs/node.md and README.md ------------------------------------------
+
+TABLE_BEGIN = "<!-- parameters: generated from frisicp_ros/stream/settings.py by `make config` -->"
+TABLE_END = "<!-- end of the generated parameters -->"
+
+
+def render_markdown_table() -> str:
+    """Every node parameter as a Markdown table: name, type, default, range or choices, meaning."""
+    rows = [
+        TABLE_BEGIN,
+        "",
+        "| parameter | type | default | range / choices | meaning |",
+        "|---|---|---|---|---|",
+    ]
+    for group in Group:
+        for row in options_for(Surface.NODE, [group]):
+            limits = " \\| ".join(row.choices) if row.choices else ""
+            if row.bounds is not None:
+                limits = f"[{_number(row.bounds[0])}, {_number(row.bounds[1])}]"
+            default = _yaml_value(row.default) if row.default != "" else '""'
+            flags = f" ({group.value}{', read-only' if row.read_only else ''})"
+            rows.append(
+                f"| `{row.name}` | {row.kind.__name__} | `{default}` | {limits} | {row.description}{flags} |"
+            )
+    rows += ["", TABLE_END]
+    return "\n".join(rows)
+
+
+def with_table(text: str) -> str:
+    """``text`` (a Markdown file) with its generated parameter table replaced by the current one."""
+    begin, end = text.index(TABLE_BEGIN), text.index(TABLE_END) + len(TABLE_END)
+    return text[:begin] + render_markdown_table() + text[end:]
+
+
 if __name__ == "__main__":
-    print(render_yaml(), end="")
+    import sys
+
+    if sys.argv[1:2] == ["--markdown"]:  # rewrite the tables of the given Markdown files
+        for name in sys.argv[2:]:
+            with open(name, encoding="utf-8") as file:
+                current = file.read()
+            with open(name, "w", encoding="utf-8") as file:
+                file.write(with_table(current))
+    else:
+        print(render_yaml(), end="")

@@ -68,11 +68,10 @@ def test_colcon_build_installs_what_ros2_run_and_launch_need(tmp_path, options):
         assert (share / relative).is_file(), relative
     assert (share / "config" / "frisicp.yaml").read_text() == (ROOT / "config" / "frisicp.yaml").read_text()
 
-    site_packages = next(prefix.glob("lib/python3*/site-packages"))
     env = dict(
         os.environ,
         AMENT_PREFIX_PATH=str(prefix),
-        PYTHONPATH=str(site_packages),
+        PYTHONPATH=sourced_pythonpath(prefix),
         ROS_DOMAIN_ID=DOMAIN_ID,
         ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
     )
@@ -97,6 +96,50 @@ def test_colcon_build_installs_what_ros2_run_and_launch_need(tmp_path, options):
         timeout=60,
     )
     assert run.returncode == 2 and "method must be one of" in run.stderr, run.stderr
+
+
+def test_ros2_run_frisicp_demo_works_in_a_workspace_and_keeps_the_users_domain(tmp_path):
+    """What `ros2 run frisicp_ros frisicp-demo` runs: lib/frisicp_ros/frisicp-demo, with the
+    workspace sourced (PYTHONPATH, AMENT_PREFIX_PATH) and register_node only beside it."""
+    prefix = build(tmp_path)
+    env = dict(
+        os.environ,
+        AMENT_PREFIX_PATH=str(prefix),
+        PYTHONPATH=sourced_pythonpath(prefix),
+        PATH=f"/usr/bin{os.pathsep}/bin",  # neither the venv's bin nor the workspace's lib on PATH
+        ROS_DOMAIN_ID=DOMAIN_ID,
+        ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+    )
+    picture = tmp_path / "last.png"
+    demo = subprocess.run(
+        [str(prefix / "lib" / "frisicp_ros" / "frisicp-demo"), "--duration", "2", "--plot", str(picture)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert demo.returncode == 0, demo.stdout[-2000:] + demo.stderr[-2000:]
+    assert f"ROS domain {DOMAIN_ID}" in demo.stdout
+    assert "register_node stopped cleanly" in demo.stdout
+    assert picture.stat().st_size > 10_000
+
+
+def sourced_pythonpath(prefix: Path) -> str:
+    """PYTHONPATH as sourcing the workspace sets it: the package's environment hooks (share/<pkg>/
+    package.dsv and the files it sources; a --symlink-install adds the build folder)."""
+    entries: list[str] = []
+
+    def read(dsv: Path) -> None:
+        for line in dsv.read_text().splitlines():
+            kind, _, rest = line.partition(";")
+            if kind == "source" and rest.endswith(".dsv"):
+                read((prefix / rest).resolve() if not Path(rest).is_absolute() else Path(rest))
+            elif kind == "prepend-non-duplicate" and rest.startswith("PYTHONPATH;"):
+                path = rest.split(";", 1)[1]
+                entries.insert(0, path if Path(path).is_absolute() else str(prefix / path))
+
+    read(prefix / "share" / "frisicp_ros" / "package.dsv")
+    return os.pathsep.join(entries)
 
 
 class _Recorded:
