@@ -121,8 +121,9 @@ class RegistrationParts:
 
     :meth:`set_up` makes the pipeline, publishers, subscriptions, service and timer,
     :meth:`start_work` starts the worker (or the bag replay), :meth:`stop_work` stops it, and
-    :meth:`tear_down` destroys what ``set_up`` made. The plain node does all four in its lifetime;
-    the managed node in configure / activate / deactivate / cleanup.
+    :meth:`tear_down` destroys what ``set_up`` made. The plain node sets up and starts when it is
+    constructed and stops in ``destroy_node``; the managed node does the four in its configure,
+    activate, deactivate and cleanup transitions.
     """
 
     # Everything below lives in rclpy's Node, which the concrete classes also derive from.
@@ -172,7 +173,7 @@ class RegistrationParts:
                 self.get_logger().warning(message)
                 self._status.set_tf("requested, but tf2_msgs is not installed: not published")
         self._diagnostics_publisher = create_publisher(DiagnosticArray, "/diagnostics", 10)
-        self._replay_values = values
+        self._values = values
         self._inputs: list[Any] = []
         if not values["bag"]:
             self._inputs = [
@@ -206,7 +207,7 @@ class RegistrationParts:
         self._stopping = threading.Event()
         self._status.mark_started()
         self._active = True
-        values = self._replay_values
+        values = self._values
         if values["bag"]:
             # Imported only now: live use needs no rosbags.
             from frisicp_ros.node.replay import BagReplay, replay_options

@@ -62,9 +62,16 @@ def test_colcon_build_installs_what_ros2_run_and_launch_need(tmp_path, options):
     prefix = build(tmp_path, *options)
     share = prefix / "share" / "frisicp_ros"
     register_node = prefix / "lib" / "frisicp_ros" / "register_node"
-    assert os.access(register_node, os.X_OK)
+    for script in ("register_node", "register_lifecycle_node", "frisicp-demo", "frisicp"):
+        assert os.access(prefix / "lib" / "frisicp_ros" / script, os.X_OK), script
     assert (prefix / "share" / "ament_index" / "resource_index" / "packages" / "frisicp_ros").exists()
-    for relative in ("package.xml", "config/frisicp.yaml", "launch/register.launch.py"):
+    for relative in (
+        "package.xml",
+        "config/frisicp.yaml",
+        "config/frisicp.rviz",
+        "config/fastdds_large_messages.xml",
+        "launch/register.launch.py",
+    ):
         assert (share / relative).is_file(), relative
     assert (share / "config" / "frisicp.yaml").read_text() == (ROOT / "config" / "frisicp.yaml").read_text()
 
