@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo test lint config bench bench-smoke bench-paper bench-paper-quick bench-partial bench-node bench-bag bench-cluster clean
+.PHONY: setup demo test colcon-test lint config bench bench-smoke bench-paper bench-paper-quick bench-partial bench-node bench-bag bench-cluster clean
 
 $(STAMP): setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
@@ -22,6 +22,14 @@ test: $(STAMP)
 	@$(BIN)/python -m pytest -q test; rc=$$?; \
 	  if [ $$rc -eq 5 ]; then echo "pytest collected no tests: failing"; fi; exit $$rc
 
+# The package in a plain ROS 2 workspace whose Python packages come only from package.xml's keys
+# (test/support/workspace.py): colcon build, colcon test --packages-select frisicp_ros, colcon
+# test-result. COLCON_TESTS chooses the tests: by default all but the clean-venv test (marked slow,
+# it builds yet another venv from PyPI); COLCON_TESTS= runs them all.
+COLCON_TESTS ?= -m "not slow"
+colcon-test: $(STAMP)
+	cd test && ../$(BIN)/python -m support.workspace $(COLCON_TESTS)
+
 # ruff (lint and format) over the tree; mypy: the core strict, the ROS side and the benchmark typed.
 lint: $(STAMP)
 	$(BIN)/ruff check .
@@ -29,9 +37,11 @@ lint: $(STAMP)
 	$(BIN)/mypy --strict frisicp_core
 	$(BIN)/mypy frisicp_ros frisicp_bench
 
-# config/frisicp.yaml is generated from the settings table (frisicp_ros/stream/settings.py).
+# config/frisicp.yaml and the parameter tables of docs/node.md and README.md are generated from the
+# settings table (frisicp_ros/stream/settings.py).
 config: $(STAMP)
 	$(BIN)/python -m frisicp_ros.stream.settings > config/frisicp.yaml.new && mv config/frisicp.yaml.new config/frisicp.yaml
+	$(BIN)/python -m frisicp_ros.stream.settings --markdown docs/node.md README.md
 
 # register in aligned bidirectional passes, cold and warm (docs/core_speed.md); Open3D side by side
 # when installed. One OpenMP thread, as the node and the bag workers run.

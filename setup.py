@@ -27,7 +27,7 @@ setup(
     data_files=[
         ("share/ament_index/resource_index/packages", [f"resource/{PACKAGE}"]),
         (f"share/{PACKAGE}", ["package.xml"]),
-        (f"share/{PACKAGE}/config", glob("config/*.yaml") + glob("config/*.xml")),
+        (f"share/{PACKAGE}/config", glob("config/*.yaml") + glob("config/*.xml") + glob("config/*.rviz")),
         (f"share/{PACKAGE}/launch", glob("launch/*.launch.py")),
     ],
     python_requires=">=3.10",
@@ -41,9 +41,15 @@ setup(
         "pypcd4>=1.1",  # PCD (ascii, binary, binary_compressed) reading for the CLI
         "rosbags>=0.10",  # offline bag mode, no ROS installation needed
         "tqdm>=4.60",  # progress bar of the bag mode
+        "matplotlib>=3.6",  # pictures: frisicp register/bag --plot, frisicp-demo (imported only to draw)
     ],
     extras_require={
-        "ros": ["ros-jazzy-rclpy[fastrtps]", "ros-jazzy-common-interfaces"],
+        "ros": [
+            "ros-jazzy-rclpy[fastrtps]",
+            "ros-jazzy-common-interfaces",
+            "ros-jazzy-rcl-lifecycle",  # register_lifecycle_node (rclpy.lifecycle)
+            "ros-jazzy-lifecycle-msgs",
+        ],
         # `frisicp bag --scheduler`: a Dask cluster's scheduler, worker management and deployment
         # (dask-jobqueue, dask-kubernetes, the helm chart) instead of a home-made distributed pool.
         "dask": ["distributed>=2024.8"],
@@ -82,6 +88,7 @@ setup(
         "console_scripts": [
             "frisicp = frisicp_ros.cli.main:main",
             "register_node = frisicp_ros.node.node:main",
+            "register_lifecycle_node = frisicp_ros.node.lifecycle:main",
             "frisicp-demo = frisicp_ros.node.demo:main",
         ],
     },

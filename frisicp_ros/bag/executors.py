@@ -25,6 +25,7 @@ from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from typing import Any, NamedTuple, Protocol
 
+from frisicp_core.config import InitialGuess
 from frisicp_ros.bag.jobs import ordered_map
 from frisicp_ros.bag.locate import BagSource
 from frisicp_ros.bag.pairs import BagPair, PlainCloud
@@ -89,17 +90,22 @@ class Executor(Protocol):
 
 
 class SequentialPerBag:
-    """``--jobs 1`` with warm start: one pipeline per bag, each pair warm-started from the one
-    before it in the same bag (each bag starts cold, as if registered alone)."""
+    """``--jobs 1`` with warm start or an initial guess: one pipeline per bag, each pair
+    warm-started from the one before it in the same bag (each bag starts cold, as if registered
+    alone). A ``guess`` steers the first pair of every bag (a run of one bag with it gives the
+    same lines); tracking goes on from that pair's result."""
 
-    def __init__(self, settings: PipelineSettings) -> None:
+    def __init__(self, settings: PipelineSettings, guess: InitialGuess | None = None) -> None:
         self.settings = settings
+        self.guess = guess
         self._bag: int | None = None
         self._registrar = SequentialRegistrar(settings)
 
     def __call__(self, item: BatchPair) -> PairOutcome | None:
         if item.bag != self._bag:
             self._bag, self._registrar = item.bag, SequentialRegistrar(self.settings)
+            if self.guess is not None:
+                self._registrar.request_guess(self.guess)
         return self._registrar(item)
 
 
@@ -132,22 +138,29 @@ def per_bag_chunks(mapper: Callable[..., Any]) -> PairMapper[Any, BatchPair]:
 
 @dataclass(frozen=True)
 class LocalProcesses:
-    """``--jobs N``: this machine; one job runs in this process, N > 1 in N worker processes."""
+    """``--jobs N``: this machine; one job runs in this process, N > 1 in N worker processes.
+    An initial ``guess`` (one job only) steers each bag's first pair."""
 
     jobs: int
+    guess: InitialGuess | None = None
+
+    def __post_init__(self) -> None:
+        if self.guess is not None and self.jobs != 1:
+            # Chunks of parallel workers start blind, exactly where a guess is needed.
+            raise ValueError("an initial guess steers the first pair of one stream: use one job")
 
     def plan(self, settings: PipelineSettings, interruptible: Interruptible) -> Plan:
-        """One job: every pair of a bag warm-started from the one before, as in the node. Several
-        jobs without warm start: independent pairs, exactly the results of one job. Several jobs
-        with warm start: chunks warm-started within themselves; the notice says so (results can
-        differ from one job's in the last digits)."""
+        """One job: every pair of a bag warm-started from the one before (or from the guess),
+        as in the node. Several jobs without warm start: independent pairs, exactly the results
+        of one job. Several jobs with warm start: chunks warm-started within themselves; the
+        notice says so (results can differ from one job's in the last digits)."""
         mapper = _pool_loss_is_fatal(
             functools.partial(ordered_map, jobs=self.jobs, interruptible=interruptible)
         )
+        if self.jobs == 1 and (settings.warm_start or self.guess is not None):
+            return Plan(SequentialPerBag(settings, self.guess), mapper, None)
         if not settings.warm_start:
             return Plan(IndependentRegistrar(settings), mapper, None)
-        if self.jobs == 1:
-            return Plan(SequentialPerBag(settings), mapper, None)
         return Plan(ChunkRegistrar(settings), per_bag_chunks(mapper), chunk_notice(f"--jobs {self.jobs}"))
 
     def close(self) -> str | None:

@@ -20,7 +20,13 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.typesys import Stores, get_typestore
 
 from frisicp_ros.bag.pairs import BagPair
-from frisicp_ros.stream.outputs import OUTPUT_TOPICS, MessageTypes, result_summary, rosbags_message_types
+from frisicp_ros.stream.outputs import (
+    OUTPUT_TOPICS,
+    TF_TYPE,
+    MessageTypes,
+    result_summary,
+    rosbags_message_types,
+)
 from frisicp_ros.stream.pipeline import PairOutcome, Registered, Rejected
 
 
@@ -96,11 +102,15 @@ class JsonLines:
             self.stream.close()
 
 
+TF_TOPIC = "/tf"
+
+
 class ResultBag:
-    """A rosbag2 (mcap storage) with the node's output topics under ``prefix``.
+    """A rosbag2 (mcap storage) with the node's output topics under ``prefix``, and ``/tf``.
 
     Message log times are the data clouds' bag times; headers carry their header stamps, as the
-    live node's outputs would.
+    live node's outputs would. ``/tf`` (tf2_msgs/TFMessage: the model frame to the data frame
+    scaled by s) gives viewers such as Foxglove the frames to place ``aligned`` and ``pose`` in.
     """
 
     def __init__(self, path: str | Path, prefix: str, topics: tuple[str, ...]) -> None:
@@ -128,16 +138,20 @@ class ResultBag:
                 )
                 for suffix in topics
             }
+            self.tf_connection = self.writer.add_connection(TF_TOPIC, TF_TYPE, typestore=self.typestore)
         except Exception as err:  # noqa: BLE001 - permission, disk full: all "cannot create"
             shutil.rmtree(self.staging, ignore_errors=True)
             raise OutputError(f"cannot create {self.temporary}: {err}") from None
         self.pairs = 0
 
-    def write(self, bag_ns: int, messages: Mapping[str, Any]) -> None:
+    def write(self, bag_ns: int, messages: Mapping[str, Any], tf: Any = None) -> None:
+        """One pair's output ``messages`` by topic suffix, and its TFMessage ``tf`` if given."""
         try:
             for suffix, message in messages.items():
                 raw = self.typestore.serialize_cdr(message, OUTPUT_TOPICS[suffix])
                 self.writer.write(self.connections[suffix], bag_ns, raw)
+            if tf is not None:
+                self.writer.write(self.tf_connection, bag_ns, self.typestore.serialize_cdr(tf, TF_TYPE))
         except OSError as err:  # a full disk: the pairs written so far stay readable after close
             raise OutputError(f"cannot write {self.temporary}: {err.strerror or err}") from None
         self.pairs += 1

@@ -1,5 +1,6 @@
 """One run of the bag mode: the pairs of one or more bags through the stream loop into JSONL and
-result bags, with one progress bar across the batch and summaries on stderr.
+result bags (the node's topics and ``/tf``) and pictures (``--plot``), with one progress bar
+across the batch and summaries on stderr.
 
 The bags are read and paired here, in batch order, as one stream; an executor
 (``frisicp_ros.bag.executors``: local processes or a Dask cluster) registers them; their results
@@ -14,8 +15,8 @@ written (result bags are finished and renamed).
 
 The exit code says how it ended: 0 every bag was read to its end (rejected and unreliable pairs
 are marked in the JSONL and counted in the summaries), 1 some bag was unreadable or stopped
-early, or the run was stopped by an output or the executor, 2 no bag could be read at all, 130
-interrupted (SIGINT), 143 terminated (SIGTERM).
+early, the run was stopped by an output or the executor, or a picture could not be written, 2 no
+bag could be read at all, 130 interrupted (SIGINT), 143 terminated (SIGTERM).
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from frisicp_ros.bag.pairs import BagPair, PairReading
 from frisicp_ros.bag.reader import BagError, open_bag, require_pointcloud2_topic
 from frisicp_ros.bag.stop import StopRequest
 from frisicp_ros.stream.loop import run_stream
-from frisicp_ros.stream.outputs import ALWAYS_PUBLISHED, build_outputs
+from frisicp_ros.stream.outputs import ALWAYS_PUBLISHED, build_outputs, scaled_frame, tf_message
 from frisicp_ros.stream.pipeline import PairOutcome, Registered
 from frisicp_ros.stream.settings import PipelineSettings
 
@@ -48,6 +49,7 @@ class Destinations:
     jsonl: str = "-"  # a file, or "-" for stdout
     result_bag: str | None = None  # a new rosbag2 folder with the node's output topics
     prefix: str = "/frisicp"  # namespace of the result bag's topics
+    plot: str | None = None  # a PNG of the results over time (frisicp_ros.stream.pictures)
 
 
 @dataclass
@@ -124,6 +126,8 @@ class BagRun:
         self.stats: RunStats | None = None  # from the moment its outputs exist
         self.results: JsonLines | None = None
         self.result_bag: ResultBag | None = None
+        self.records: list[dict[str, object]] = []  # for the picture (small: no points)
+        self.picture_failed = False  # --plot could not be written (the results are)
         self.finished = False
 
     @property
@@ -169,11 +173,17 @@ class BagRun:
 
     def write(self, pair: BagPair, outcome: PairOutcome) -> None:
         assert self.results is not None and self.stats is not None
-        self.results.write(pair_record(pair, outcome))
+        record = pair_record(pair, outcome)
+        self.results.write(record)
+        if self.job.to.plot:
+            self.records.append(record)
         if self.result_bag is not None and isinstance(outcome, Registered) and outcome.reliable:
+            types = self.result_bag.types
+            child = scaled_frame(outcome.data_frame, self.settings.tf_child_frame)
             self.result_bag.write(
                 pair.data.bag_ns,
-                build_outputs(outcome, pair.data_cloud, self.result_bag.types, self.result_bag.topics),
+                build_outputs(outcome, pair.data_cloud, types, self.result_bag.topics),
+                tf_message(outcome, child, types),
             )
         self.stats.add(pair, outcome)
 
@@ -201,7 +211,20 @@ class BagRun:
         lines.append(f"{self.label}{self.stats.summary(unpaired, wall_time=not self.job.name)}")
         if self.stats.pairs == 0 and stopped is None and self.reading is not None:
             lines.append(f"{self.label}no pairs: {no_pairs_hint(self.settings, self.reading)}")
+        if self.job.to.plot and self.records:
+            lines.append(self.label + self.draw(self.job.to.plot))
         return lines
+
+    def draw(self, path: str) -> str:
+        """The picture of the bag's results over time (after its outputs are closed: a picture
+        failing costs no data, only the exit code)."""
+        from frisicp_ros.stream.pictures import stream_picture
+
+        try:
+            return f"picture {stream_picture(self.records, path, self.job.name)}"
+        except (OSError, ValueError) as err:
+            self.picture_failed = True
+            return f"cannot write the picture {path}: {err}"
 
 
 def register_batch(runs: Sequence[BagRun], executor: Executor, progress: bool) -> int:
@@ -302,7 +325,7 @@ def _register_batch(runs: Sequence[BagRun], executor: Executor, show: bool, stop
         return code
     if not readable:
         return 2
-    return 1 if any(run.unreadable or run.stopped for run in runs) else 0
+    return 1 if any(run.unreadable or run.stopped or run.picture_failed for run in runs) else 0
 
 
 def batch_summary(runs: Sequence[BagRun], totals: RunStats) -> str:

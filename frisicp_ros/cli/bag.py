@@ -3,11 +3,13 @@
 Pairs are formed and registered by the same code as the live node (``pairing``, ``pipeline``,
 ``outputs``). Results go to JSONL (stdout by default) as they are computed and, with
 ``--out-bag``, into a rosbag2 with the node's output topics; several bags write one JSONL (and
-with ``--result-bags`` one result bag) per bag into ``--out-dir``. ``--jobs N`` registers on this
-machine's processes, ``--scheduler ADDRESS`` on a Dask cluster (``frisicp_ros.bag.cluster``).
-Progress and the summaries go to stderr. Exit codes: 0 every bag was read to its end (rejected or
-unreliable pairs are marked per line and counted in the summary), 1 a bag was unreadable or
-stopped being readable part-way, or an output or the executor failed (results so far kept), 2
+with ``--result-bags`` one result bag) per bag into ``--out-dir``; ``--plot PNG`` (``--plots``
+with ``--out-dir``) draws the results over time. ``--jobs N`` registers on this machine's
+processes, ``--scheduler ADDRESS`` on a Dask cluster (``frisicp_ros.bag.cluster``); ``--initial``
+steers each bag's first pair and needs one local job. Progress and the summaries go to stderr.
+Exit codes: 0 every bag was read to its end (rejected or unreliable pairs are marked per line and
+counted in the summary), 1 a bag was unreadable or stopped being readable part-way, or an output
+(a picture included) or the executor failed (results so far kept), 2
 bad arguments, an unreadable single bag or no readable bag at all, or an unreachable scheduler,
 130 interrupted (Ctrl-C), 143 terminated (SIGTERM) (results so far kept in both).
 """
@@ -19,10 +21,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from frisicp_ros.cli.command import CommandError
-from frisicp_ros.cli.options import add_options, given_values
+from frisicp_ros.cli.options import add_guess_options, add_options, given_values, guess_from_args
 from frisicp_ros.stream.settings import PipelineSettings, Surface, settings_from
 
 if TYPE_CHECKING:
+    from frisicp_core.config import InitialGuess
     from frisicp_ros.bag.executors import Executor
     from frisicp_ros.bag.run import BagJob
 
@@ -36,6 +39,7 @@ DESCRIPTION = (
     "--out-dir), a progress bar and a summary on stderr."
 )
 RESULT_BAG_SUFFIX = "_results"  # --out-dir DIR --result-bags: DIR/<bag name>_results/
+PICTURE_SUFFIX = ".png"  # --out-dir DIR --plots: DIR/<bag name>.png
 
 
 def configure(parser: argparse.ArgumentParser) -> None:
@@ -84,6 +88,22 @@ def configure(parser: argparse.ArgumentParser) -> None:
         " the bags must be at the same path on every worker (a shared filesystem)",
     )
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument(
+        "--plot",
+        metavar="PNG",
+        help="also draw scale, rotation, RMS, registration time and every pair's verdict over the bag's"
+        " time into this PNG",
+    )
+    parser.add_argument(
+        "--plots",
+        action="store_true",
+        help=f"with --out-dir: also that picture per bag, DIR/<bag name>{PICTURE_SUFFIX}",
+    )
+    add_guess_options(
+        parser,
+        "the first pair of each bag is registered around it instead of blind, and tracking follows"
+        " (on this machine, one job)",
+    )
     add_options(parser, Surface.BAG)
 
 
@@ -101,14 +121,25 @@ def check_arguments(args: argparse.Namespace, settings: PipelineSettings) -> Non
         raise CommandError(f"--jobs must be in [1, {MAX_JOBS}], got {args.jobs}")
     if args.jobs is not None and args.scheduler:
         raise CommandError("--jobs is for this machine; with --scheduler the cluster's workers run the pairs")
-    if args.out_dir and (args.out != "-" or args.out_bag):
-        raise CommandError("--out-dir writes one file per bag: leave out --out and --out-bag")
+    if args.out_dir and (args.out != "-" or args.out_bag or args.plot):
+        raise CommandError(
+            "--out-dir writes one file per bag: leave out --out, --out-bag and --plot"
+            " (--result-bags and --plots give a result bag and a picture per bag)"
+        )
     if args.result_bags and not args.out_dir:
         raise CommandError("--result-bags applies only with --out-dir (one bag: --out-bag DIR)")
+    if args.plots and not args.out_dir:
+        raise CommandError("--plots applies only with --out-dir (one bag: --plot PNG)")
     if len(args.inputs) > 1 and not args.out_dir:
         raise CommandError(f"{len(args.inputs)} bags need --out-dir DIR (one JSONL file per bag)")
     if args.out_bag and Path(args.out_bag).exists():  # before --out is truncated or the bag read
         raise CommandError(f"{args.out_bag} exists already; choose a new --out-bag folder")
+    if args.initial is not None and (args.scheduler or (args.jobs or 1) != 1):
+        # Parallel chunks and cluster tasks start blind, exactly where the guess is needed.
+        raise CommandError(
+            "--initial steers each bag's first pair and tracking goes on from its result, pair after"
+            " pair: leave out --jobs N and --scheduler"
+        )
 
 
 def bag_name(path: Path) -> str:
@@ -123,7 +154,7 @@ def bag_jobs(args: argparse.Namespace) -> list[BagJob]:
 
     paths = [Path(p) for p in args.inputs]
     if not args.out_dir:
-        return [BagJob(paths[0], Destinations(args.out, args.out_bag, args.out_prefix))]
+        return [BagJob(paths[0], Destinations(args.out, args.out_bag, args.out_prefix, args.plot))]
     out_dir = Path(args.out_dir)
     names: dict[str, Path] = {}
     for path in paths:
@@ -140,7 +171,10 @@ def bag_jobs(args: argparse.Namespace) -> list[BagJob]:
         if result_bag is not None and result_bag.exists():
             raise CommandError(f"{result_bag} exists already; choose a new --out-dir (or remove it)")
         to = Destinations(
-            str(out_dir / f"{name}.jsonl"), str(result_bag) if result_bag else None, args.out_prefix
+            str(out_dir / f"{name}.jsonl"),
+            str(result_bag) if result_bag else None,
+            args.out_prefix,
+            str(out_dir / f"{name}{PICTURE_SUFFIX}") if args.plots else None,
         )
         jobs.append(BagJob(path, to, name if len(paths) > 1 else ""))
     try:
@@ -150,11 +184,11 @@ def bag_jobs(args: argparse.Namespace) -> list[BagJob]:
     return jobs
 
 
-def executor_for(args: argparse.Namespace) -> Executor:
+def executor_for(args: argparse.Namespace, guess: InitialGuess | None) -> Executor:
     if not args.scheduler:
         from frisicp_ros.bag.executors import LocalProcesses
 
-        return LocalProcesses(args.jobs or 1)
+        return LocalProcesses(args.jobs or 1, guess)
     try:
         from frisicp_ros.bag.cluster import ClusterError, DaskCluster
     except ImportError as err:
@@ -170,6 +204,7 @@ def executor_for(args: argparse.Namespace) -> Executor:
 def run(args: argparse.Namespace) -> int:
     settings = settings_from_args(args)
     check_arguments(args, settings)
+    guess = guess_from_args(args, settings.dims)
     # Imported here: rosbags and tqdm are needed only when a bag is read.
     from frisicp_ros.bag.output import OutputError
     from frisicp_ros.bag.run import BagRun, register_batch
@@ -179,7 +214,7 @@ def run(args: argparse.Namespace) -> int:
         bag.survey()
     if len(runs) == 1 and runs[0].unreadable:  # one bag: its error is the command's
         raise CommandError(runs[0].unreadable)
-    executor = executor_for(args)
+    executor = executor_for(args, guess)
     try:
         return register_batch(runs, executor, progress=not args.no_progress)
     except OutputError as err:

@@ -11,7 +11,9 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from frisicp_core.config import InitialGuess
 from frisicp_ros.cli.command import CommandError
+from frisicp_ros.stream.guess import POSE_FORMAT, SIGMA_FORMAT, parse_initial
 from frisicp_ros.stream.settings import OPTIONS_BY_NAME, Group, Option, Surface, Value, options_for
 
 
@@ -74,3 +76,32 @@ def flag_of(name: str, surface: Surface) -> str:
     """The flag of a table option (``surface``: where it is asked for; every option it names has one)."""
     assert surface & OPTIONS_BY_NAME[name].surfaces, (name, surface)
     return flag(OPTIONS_BY_NAME[name])
+
+
+def add_guess_options(parser: argparse.ArgumentParser, what_it_does: str) -> None:
+    """``--initial`` and ``--initial-sigma`` (frisicp_ros.stream.guess has the format)."""
+    group = parser.add_argument_group("initial guess")
+    group.add_argument(
+        "--initial",
+        metavar=f'"{POSE_FORMAT}"',
+        help="a rough pose of the data in the model frame (model = s R data + t: t = x y z, R the"
+        f" quaternion, s the scale if known, then taken within 1 %%): {what_it_does}",
+    )
+    group.add_argument(
+        "--initial-sigma",
+        metavar=SIGMA_FORMAT,
+        help="how far off --initial may be, 1-sigma: degrees, model units, and optionally the"
+        " scale's relative sigma (default 0.01); answers beyond 3 sigmas are not reliable",
+    )
+
+
+def guess_from_args(args: argparse.Namespace, dims: int) -> InitialGuess | None:
+    """The guess of ``--initial``/``--initial-sigma`` for ``dims``-D points, or None."""
+    if args.initial is None:
+        if args.initial_sigma is not None:
+            raise CommandError("--initial-sigma applies only with --initial")
+        return None
+    try:
+        return parse_initial(args.initial, args.initial_sigma, dims)
+    except ValueError as err:
+        raise CommandError(str(err)) from None

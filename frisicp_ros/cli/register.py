@@ -3,14 +3,16 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
+from pathlib import Path
 
 import numpy as np
 
 from frisicp_core import RegistrationConfig, register
 from frisicp_core.io import CloudFileError, read_points
 from frisicp_ros.cli.command import CommandError
-from frisicp_ros.cli.options import add_options, flag_of, given_values
+from frisicp_ros.cli.options import add_guess_options, add_options, flag_of, given_values, guess_from_args
 from frisicp_ros.stream.outputs import result_summary
 from frisicp_ros.stream.settings import Surface, Value, algorithm_values, registration_config
 
@@ -32,6 +34,13 @@ def configure(parser: argparse.ArgumentParser) -> None:
         "trimming or acceleration, one level for the baselines)",
     )
     parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.add_argument(
+        "--plot",
+        metavar="PNG",
+        help="also draw the data and model before and after (three views) and the aligned data's"
+        " distances to the model into this PNG",
+    )
+    add_guess_options(parser, "the registration searches around it instead of blind")
     add_options(parser, Surface.REGISTER)
 
 
@@ -65,9 +74,18 @@ def run(args: argparse.Namespace) -> int:
         config = config_from_args(args)
         data = read_points(args.data)
         model = read_points(args.model)
+        guess = guess_from_args(args, data.shape[1])
+        if guess is not None:
+            config = dataclasses.replace(config, guess=guess)
         result = register(data, model, config)
     except (CloudFileError, ValueError) as err:
         raise CommandError(str(err)) from None
+    if args.plot:
+        from frisicp_ros.stream.pictures import alignment_picture
+
+        verdict = "reliable" if result.reliable else f"NOT reliable: {result.reason}"
+        title = f"{Path(args.data).name} onto {Path(args.model).name} ({verdict})"
+        alignment_picture(data, model, result.similarity, args.plot, title)
     summary = result_summary(result)
     usable = result.converged and result.reliable
     if args.json:

@@ -3,7 +3,11 @@
 Starts ``register_node`` as its own process (as ``ros2 run`` would), publishes the built-in
 bumpy surface once as a latched model and, a few times per second, a scaled, rotated, shifted,
 noisy copy as the data stream whose true similarity keeps changing; prints the node's estimate
-next to the truth. DDS stays on loopback in its own domain, so nothing leaves this machine.
+next to the truth and draws its last alignment into a PNG (``--plot``). DDS stays on loopback,
+in the ROS_DOMAIN_ID the user set (else its own, 142), so nothing leaves this machine.
+
+``register_node`` is looked up beside this script first: ``ros2 run frisicp_ros frisicp-demo``
+runs it from a workspace's ``lib/frisicp_ros``, where colcon installs both.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface, rotatio
 DEFAULT_DOMAIN_ID = 142
 STARTUP_TIMEOUT = 30.0  # s for the node to start and answer the first cloud
 DRAIN_SECONDS = 3.0  # s to wait for the last answer after the stream stops
+_KEPT_CLOUDS = 20  # data clouds kept for the picture of the last answered one
 
 
 @dataclass(frozen=True)
@@ -60,25 +65,59 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument(
         "--domain-id",
         type=int,
-        default=DEFAULT_DOMAIN_ID,
-        help=f"ROS_DOMAIN_ID of the demo (default {DEFAULT_DOMAIN_ID})",
+        default=None,
+        help=f"ROS_DOMAIN_ID of the demo (default: the environment's ROS_DOMAIN_ID, else {DEFAULT_DOMAIN_ID})",
+    )
+    parser.add_argument(
+        "--plot",
+        default="frisicp_demo.png",
+        metavar="PNG",
+        help="draw the last alignment (data and model before and after) into this PNG (default"
+        " %(default)s); empty: no picture",
     )
     return parser.parse_args(argv)
 
 
+def domain_id(given: int | None, environ: dict[str, str] | os._Environ[str]) -> int:
+    """The domain: ``--domain-id``, else a ROS_DOMAIN_ID the user set, else the demo's own."""
+    if given is not None:
+        return given
+    value = environ.get("ROS_DOMAIN_ID", "").strip()
+    return int(value) if value.isdigit() else DEFAULT_DOMAIN_ID
+
+
 def isolate_dds(domain_id: int) -> dict[str, str]:
-    """Loopback-only discovery in the demo's own domain (set before rclpy is imported)."""
+    """Loopback-only discovery in ``domain_id`` (set before rclpy is imported)."""
     os.environ["ROS_DOMAIN_ID"] = str(domain_id)
     os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     os.environ.pop("ROS_STATIC_PEERS", None)
     return dict(os.environ)
 
 
+def register_node_script() -> str:
+    """register_node beside this script (a colcon workspace's lib/frisicp_ros, a venv's bin), beside
+    the interpreter, on PATH, or in an install prefix on AMENT_PREFIX_PATH."""
+    places = [Path(sys.argv[0]).resolve().parent, Path(sys.executable).parent]
+    places += [
+        Path(prefix) / "lib" / "frisicp_ros"
+        for prefix in os.environ.get("AMENT_PREFIX_PATH", "").split(os.pathsep)
+        if prefix
+    ]
+    for place in places:
+        if os.access(place / "register_node", os.X_OK):
+            return str(place / "register_node")
+    on_path = shutil.which("register_node")
+    if on_path is None:
+        looked = ", ".join(str(p) for p in places)
+        raise SystemExit(
+            f"frisicp-demo: register_node is not installed (looked in {looked} and PATH;"
+            " pip install -e '.[ros]', or colcon build and source install/setup.bash)"
+        )
+    return on_path
+
+
 def register_node_command(max_points: int) -> list[str]:
-    beside = Path(sys.executable).parent / "register_node"
-    script = str(beside) if beside.exists() else shutil.which("register_node")
-    if script is None:
-        raise SystemExit("frisicp-demo: register_node is not installed (pip install -e '.[ros]')")
+    script = register_node_script()
     return [
         script,
         "--ros-args",
@@ -108,6 +147,7 @@ def stop_node(node: subprocess.Popen, timeout: float) -> str:
 
 def main(argv: list[str] | None = None) -> int:
     args = parse_args(argv)
+    args.domain_id = domain_id(args.domain_id, os.environ)
     env = isolate_dds(args.domain_id)
     node = subprocess.Popen(
         register_node_command(args.max_points),
@@ -117,8 +157,9 @@ def main(argv: list[str] | None = None) -> int:
         text=True,
     )
     print(f"frisicp demo: register_node running (pid {node.pid}), ROS domain {args.domain_id}, loopback only")
+    last: LastAlignment | None = None
     try:
-        registered, sent = run_stream(args)
+        registered, sent, last = run_stream(args)
     except KeyboardInterrupt:
         registered, sent = [], 0
         print("\ninterrupted")
@@ -126,19 +167,38 @@ def main(argv: list[str] | None = None) -> int:
         node_log = stop_node(node, timeout=20)
     clean = node.returncode == 0 and "Traceback" not in node_log
     print_summary(registered, sent, clean)
+    if args.plot and last is not None:
+        from frisicp_ros.stream.pictures import alignment_picture
+
+        title = f"frisicp-demo: the node's last estimate (true scale {last.truth.scale:.3f})"
+        print(
+            f"last alignment drawn in {alignment_picture(last.data, last.model, last.estimate, args.plot, title)}"
+        )
     if not clean:
         print(node_log, file=sys.stderr)
     return 0 if clean and registered else 1
 
 
-def run_stream(args: argparse.Namespace) -> tuple[list[tuple[Similarity, Similarity, float, float]], int]:
-    """Publish for ``args.duration`` s; return (truth, estimate, rms, latency) per answered cloud."""
+@dataclass(frozen=True)
+class LastAlignment:
+    """The last answered data cloud, with the model, the node's estimate and the truth."""
+
+    data: np.ndarray
+    model: np.ndarray
+    estimate: Similarity
+    truth: Similarity
+
+
+def run_stream(
+    args: argparse.Namespace,
+) -> tuple[list[tuple[Similarity, Similarity, float, float]], int, LastAlignment | None]:
+    """Publish for ``args.duration`` s; return (truth, estimate, rms, latency) per answered cloud,
+    the number sent, and the last answered cloud's alignment."""
     import rclpy
-    from geometry_msgs.msg import TransformStamped
+    from geometry_msgs.msg import TransformStamped, Vector3Stamped
     from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import PointCloud2
-    from std_msgs.msg import Float64
 
     from frisicp_ros.stream.outputs import rclpy_message_types
     from frisicp_ros.stream.pointcloud2 import points_to_parts
@@ -166,11 +226,11 @@ def run_stream(args: argparse.Namespace) -> tuple[list[tuple[Similarity, Similar
     # scale and rms arrive in the same order as the transforms (same publisher thread, one each)
     publisher_node.create_subscription(TransformStamped, "/frisicp/transform", on_transform, 10)
 
-    def collect(values: list[float]) -> Callable[[Float64], None]:
-        return lambda msg: values.append(msg.data)
+    def collect(values: list[float]) -> Callable[[Vector3Stamped], None]:
+        return lambda msg: values.append(msg.vector.x)
 
-    publisher_node.create_subscription(Float64, "/frisicp/scale", collect(scales), 10)
-    publisher_node.create_subscription(Float64, "/frisicp/rms", collect(rms), 10)
+    publisher_node.create_subscription(Vector3Stamped, "/frisicp/scale", collect(scales), 10)
+    publisher_node.create_subscription(Vector3Stamped, "/frisicp/rms", collect(rms), 10)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(publisher_node)
     spinner = threading.Thread(target=executor.spin, daemon=True)
@@ -179,6 +239,7 @@ def run_stream(args: argparse.Namespace) -> tuple[list[tuple[Similarity, Similar
     model_points = bumpy_surface(20000, seed=0)
     model_pub.publish(types.point_cloud(points_to_parts(model_points), types.header(0, "demo_map")))
     rng = np.random.default_rng(7)
+    clouds: dict[int, np.ndarray] = {}
     sent: dict[int, tuple[Similarity, float]] = {}
     order: list[int] = []
     printed = 0
@@ -215,6 +276,9 @@ def run_stream(args: argparse.Namespace) -> tuple[list[tuple[Similarity, Similar
                 data_pub.publish(types.point_cloud(points_to_parts(data), types.header(stamp, "demo_sensor")))
                 sent[stamp] = (truth, now)
                 order.append(stamp)
+                clouds[stamp] = data
+                for old in order[:-_KEPT_CLOUDS]:  # the last few, for the picture
+                    clouds.pop(old, None)
                 next_send += 1.0 / args.rate
             printed = print_new_rows(order, sent, transforms, arrival, scales, rms, lock, start, printed)
             time.sleep(0.01)
@@ -224,7 +288,13 @@ def run_stream(args: argparse.Namespace) -> tuple[list[tuple[Similarity, Similar
         publisher_node.destroy_node()
         rclpy.shutdown(context=context)
     print_new_rows(order, sent, transforms, arrival, scales, rms, lock, start, printed)
-    return _collect(order, sent, transforms, arrival, scales, rms, lock), len(order)
+    rows = _collect(order, sent, transforms, arrival, scales, rms, lock)
+    answered = _answered(order, transforms, lock)[: len(rows)]
+    last = None
+    if rows and answered[-1] in clouds:
+        truth, estimate, _, _ = rows[-1]
+        last = LastAlignment(clouds[answered[-1]], model_points, estimate, truth)
+    return rows, len(order), last
 
 
 def _answered(order, transforms, lock) -> list[int]:

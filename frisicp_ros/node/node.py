@@ -1,9 +1,13 @@
 """``register_node``: the FRISICP ROS 2 node (thin glue around the shared pipeline).
 
-Subscribes ``model`` and ``data`` (sensor_msgs/PointCloud2), pairs them (``pairing``), hands the
-newest pair to one worker thread (registration never runs in an executor callback), and
-publishes ``~/transform``, ``~/scale``, ``~/rms``, ``~/similarity``, ``~/aligned`` and
-``/diagnostics``. See docs/node.md.
+Subscribes ``model`` and ``data`` (sensor_msgs/PointCloud2) and ``~/initial_guess``
+(geometry_msgs/PoseWithCovarianceStamped), pairs the clouds (``pairing``), hands the newest pair
+to one worker thread (registration never runs in an executor callback), and publishes
+``~/transform``, ``~/pose``, ``~/scale``, ``~/rms``, ``~/similarity``, ``~/aligned``, optionally
+``/tf``, and ``/diagnostics``. See docs/node.md.
+
+:class:`RegistrationParts` is everything the node does; :class:`RegistrationNode` runs it from
+construction to destruction, ``frisicp_ros.node.lifecycle`` between its lifecycle transitions.
 """
 
 from __future__ import annotations
@@ -18,13 +22,15 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 import rclpy
 import rclpy.logging
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+from geometry_msgs.msg import PoseWithCovarianceStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
@@ -43,18 +49,22 @@ from std_srvs.srv import Trigger
 from frisicp_ros.node import parameters, shutdown
 from frisicp_ros.node.newest_slot import NewestWinsSlot
 from frisicp_ros.node.status import NodeStatus
+from frisicp_ros.stream.guess import describe_guess, guess_from_message
 from frisicp_ros.stream.loop import SequentialRegistrar, run_stream, serial_map
 from frisicp_ros.stream.outputs import (
     ALWAYS_PUBLISHED,
     OUTPUT_TOPICS,
+    TF_TYPE,
     MessageTypes,
     build_outputs,
     rclpy_message_types,
+    scaled_frame,
+    tf_message,
 )
 from frisicp_ros.stream.pairing import Pairer
 from frisicp_ros.stream.pipeline import PairOutcome, Rejected, describe
 from frisicp_ros.stream.pointcloud2 import stamp_ns
-from frisicp_ros.stream.settings import settings_from
+from frisicp_ros.stream.settings import Value, settings_from
 
 if TYPE_CHECKING:
     from frisicp_ros.node.replay import BagReplay
@@ -78,6 +88,22 @@ SUBSCRIPTION_QOS = {
     ),
 }
 OUTPUT_QOS = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+# tf2_ros's TransformBroadcaster QoS (DynamicBroadcasterQoS): reliable, volatile, depth 100.
+TF_QOS = QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE)
+GUESS_QOS = QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE)  # RViz's /initialpose: reliable
+PROFILE_FILE = "fastdds_large_messages.xml"
+
+
+def shipped_dds_profile() -> str:
+    """Where config/fastdds_large_messages.xml is installed: the package's share directory (a
+    workspace, found through the ament index) or, for pip installs, the environment's share/."""
+    try:
+        from ament_index_python.packages import get_package_share_directory
+
+        share = Path(get_package_share_directory("frisicp_ros"))
+    except (ImportError, LookupError, ValueError, OSError):  # no AMENT_PREFIX_PATH: a pip install
+        share = Path(sys.prefix) / "share" / "frisicp_ros"
+    return str(share / "config" / PROFILE_FILE)
 
 
 @dataclass(frozen=True)
@@ -87,11 +113,36 @@ class PendingPair:
     received_at: float  # time.monotonic() when the data cloud (or the completing cloud) arrived
 
 
-class RegistrationNode(Node):
-    def __init__(self, **kwargs: Any) -> None:
-        super().__init__(NODE_NAME, **kwargs)
-        parameters.declare(self)
-        values = parameters.current_values(self)
+PublisherFactory = Callable[..., Any]  # Node.create_publisher or LifecycleNode.create_lifecycle_publisher
+
+
+class RegistrationParts:
+    """The node's work, for a ``Node`` or a ``LifecycleNode`` (mixed in before it).
+
+    :meth:`set_up` makes the pipeline, publishers, subscriptions, service and timer,
+    :meth:`start_work` starts the worker (or the bag replay), :meth:`stop_work` stops it, and
+    :meth:`tear_down` destroys what ``set_up`` made. The plain node sets up and starts when it is
+    constructed and stops in ``destroy_node``; the managed node does the four in its configure,
+    activate, deactivate and cleanup transitions.
+    """
+
+    # Everything below lives in rclpy's Node, which the concrete classes also derive from.
+    get_logger: Callable[[], Any]
+    get_parameter: Callable[[str], Parameter]
+    get_name: Callable[[], str]
+    get_fully_qualified_name: Callable[[], str]
+    get_clock: Callable[[], Any]
+    resolve_topic_name: Callable[..., str]
+    create_subscription: Callable[..., Any]
+    create_service: Callable[..., Any]
+    create_timer: Callable[..., Any]
+    destroy_subscription: Callable[..., Any]
+    destroy_service: Callable[..., Any]
+    destroy_timer: Callable[..., Any]
+    context: Any
+
+    def set_up(self, create_publisher: PublisherFactory, values: dict[str, Value]) -> None:
+        """Build everything from the parameter ``values`` (a bad value raises ValueError here)."""
         settings = settings_from(values)  # a bad --params-file value fails here, loudly
         self._types: MessageTypes = rclpy_message_types()
         # The one pipeline; only the thread running the stream loop (the worker, or the bag
@@ -101,48 +152,108 @@ class RegistrationNode(Node):
         self._pairer: Pairer[PointCloud2, PointCloud2] = Pairer(settings.pairing, settings.sync_tolerance)
         self._slot: NewestWinsSlot[PendingPair] = NewestWinsSlot()
         self._models_received = 0  # since start or ~/reset (under the pairer lock)
-        self._status = NodeStatus()
-
+        self._status = NodeStatus(
+            stale_after=float(values["stale_after"]), fix_for_lost_scans=_lost_scan_fix()
+        )
         self._output_publishers = {
-            suffix: self.create_publisher(self._types[type_name], f"~/{suffix}", OUTPUT_QOS)
+            suffix: create_publisher(self._types[type_name], f"~/{suffix}", OUTPUT_QOS)
             for suffix, type_name in OUTPUT_TOPICS.items()
         }
-        self._diagnostics_publisher = self.create_publisher(DiagnosticArray, "/diagnostics", 10)
-        # With the `bag` parameter the clouds come from a bag instead of subscriptions (replay.py,
-        # imported only then: live use needs no rosbags).
+        self._tf_publisher = None
+        if values["publish_tf"]:
+            if TF_TYPE in self._types:
+                self._tf_publisher = create_publisher(self._types[TF_TYPE], "/tf", TF_QOS)
+                self._status.set_tf("publishing (child frame: the data frame scaled by s)")
+            else:
+                message = (
+                    "publish_tf is true but tf2_msgs cannot be imported (it is not on PyPI: run the"
+                    " node in a ROS 2 installation that has tf2_msgs); /tf is NOT published,"
+                    " ~/pose and ~/transform carry the same estimate"
+                )
+                self.get_logger().warning(message)
+                self._status.set_tf("requested, but tf2_msgs is not installed: not published")
+        self._diagnostics_publisher = create_publisher(DiagnosticArray, "/diagnostics", 10)
+        self._values = values
+        self._inputs: list[Any] = []
+        if not values["bag"]:
+            self._inputs = [
+                self.create_subscription(
+                    PointCloud2, "model", self._on_model, SUBSCRIPTION_QOS[str(values["model_qos"])]
+                ),
+                self.create_subscription(  # two parameters: rclpy passes the message info too
+                    PointCloud2,
+                    "data",
+                    self._on_data,  # rclpy passes (msg, info) to a two-parameter callback
+                    SUBSCRIPTION_QOS[str(values["data_qos"])],
+                ),
+            ]
+        # Guesses are taken in replay mode too: the replay is a live stream for everything else.
+        self._inputs.append(
+            self.create_subscription(PoseWithCovarianceStamped, "~/initial_guess", self._on_guess, GUESS_QOS)
+        )
+        self._reset_service = self.create_service(Trigger, "~/reset", self._on_reset)
+        self._diagnostics_timer = self.create_timer(
+            float(values["diagnostics_period"]), self._publish_diagnostics
+        )
+        self._stopping = threading.Event()
+        self._stopping.set()  # not working until start_work
+        self._active = False  # data clouds are taken only while working
+        self._handled_pairs = 0  # pairs the worker took to the end (for its restart rule)
+        self._worker = threading.Thread(target=self._work, name="frisicp-registration", daemon=True)
         self._replay: BagReplay | None = None
+
+    def start_work(self) -> None:
+        """Start registering: the worker, or (``bag`` parameter) the bag replay."""
+        self._stopping = threading.Event()
+        self._status.mark_started()
+        self._active = True
+        values = self._values
         if values["bag"]:
+            # Imported only now: live use needs no rosbags.
             from frisicp_ros.node.replay import BagReplay, replay_options
 
             self._replay = BagReplay(
-                self, replay_options(self, values), self._registrar, self.publish_outcome
+                self,  # type: ignore[arg-type]  # the concrete classes are rclpy Nodes
+                replay_options(self, values),  # type: ignore[arg-type]
+                self._registrar,
+                self.publish_outcome,
             )
-        else:
-            self.create_subscription(
-                PointCloud2, "model", self._on_model, SUBSCRIPTION_QOS[str(values["model_qos"])]
-            )
-            self.create_subscription(  # two parameters: rclpy passes the message info too
-                PointCloud2,
-                "data",
-                self._on_data,  # type: ignore[arg-type]  # rclpy's stubs know one-parameter callbacks only
-                SUBSCRIPTION_QOS[str(values["data_qos"])],
-            )
-        self.create_service(Trigger, "~/reset", self._on_reset)
-        self.add_on_set_parameters_callback(self._validate_parameters)
-        self.add_post_set_parameters_callback(self._apply_parameters)
-        self.create_timer(float(values["diagnostics_period"]), self._publish_diagnostics)
-
-        self._stopping = threading.Event()
-        self._handled_pairs = 0  # pairs the worker took to the end (for its restart rule)
-        self._worker = threading.Thread(target=self._work, name="frisicp-registration", daemon=True)
-        if self._replay is not None:
             self._replay.start()
         else:
+            self._worker = threading.Thread(target=self._work, name="frisicp-registration", daemon=True)
             self._worker.start()
+        settings = self._registrar.settings
         self.get_logger().info(
             f"registering '{self.resolve_topic_name('data')}' onto '{self.resolve_topic_name('model')}'"
             f" ({settings.pairing}, {settings.dims}-D, max_points {settings.max_points or 'unlimited'})"
         )
+
+    def stop_work(self) -> None:
+        """Stop the worker (or replay), waiting for a running registration; pending pairs go."""
+        self._active = False
+        self._stopping.set()
+        self._slot.close()
+        if self._replay is not None:
+            self._replay.stop(_WORKER_JOIN_SEC)
+            self._replay = None
+        if self._worker.is_alive() and threading.current_thread() is not self._worker:
+            self._worker.join(_WORKER_JOIN_SEC)
+        self._slot = NewestWinsSlot()  # a fresh one for a later start
+
+    def tear_down(self, destroy_publisher: Callable[[Any], Any]) -> None:
+        """Destroy what :meth:`set_up` made (the worker must be stopped)."""
+        for subscription in self._inputs:
+            self.destroy_subscription(subscription)
+        self._inputs = []
+        self.destroy_service(self._reset_service)
+        self.destroy_timer(self._diagnostics_timer)
+        publishers = [*self._output_publishers.values(), self._diagnostics_publisher]
+        if self._tf_publisher is not None:
+            publishers.append(self._tf_publisher)
+        for publisher in publishers:
+            destroy_publisher(publisher)
+        self._output_publishers = {}
+        self._tf_publisher = None
 
     # --- inputs (executor callbacks: cheap, never register) ---------------------------------------
 
@@ -155,8 +266,11 @@ class RegistrationNode(Node):
 
     def _on_data(self, msg: PointCloud2, info: dict[str, int]) -> None:
         """A data cloud; ``info`` (rclpy's message info) has its DDS source and receipt times."""
+        if not self._active:  # a managed node while inactive: not taken
+            return
         now_ns = time.time_ns()
         source, received = info.get("source_timestamp", 0), info.get("received_timestamp", 0)
+        self._status.count_data(stamp_ns(msg))
         if source > 0 and received > 0:
             self._status.count_input("data", (received - source) * 1e-9, (now_ns - received) * 1e-9)
         else:
@@ -193,10 +307,38 @@ class RegistrationNode(Node):
             self._models_received = 0
         self._slot.clear()
         self._registrar.request_reset()
+        self._status.record_reset()
         response.success = True
         response.message = "stored model, pending pair and warm start cleared"
         self.get_logger().info(response.message)
         return response
+
+    def _on_guess(self, msg: PoseWithCovarianceStamped) -> None:
+        """An initial guess (RViz's "2D Pose Estimate"): the next registration searches around it,
+        cold; tracking goes on from its result. A guess that cannot be used is logged, not taken."""
+        try:
+            guess = self._guess_of(msg)
+        except ValueError as err:
+            self.get_logger().warning(f"initial guess ignored: {err}")
+            self._status.record_guess(f"ignored: {err}")
+            return
+        self._registrar.request_guess(guess)
+        self._status.record_guess(f"taken: {describe_guess(guess)}")
+        self.get_logger().info(f"initial guess for the next registration: {describe_guess(guess)}")
+
+    def _guess_of(self, msg: PoseWithCovarianceStamped) -> Any:
+        frame = str(msg.header.frame_id).lstrip("/")
+        with self._pairer_lock:
+            model = self._pairer.latest_model
+        settings = self._registrar.pending_settings or self._registrar.settings
+        model_frame = settings.model_frame or (str(model.header.frame_id).lstrip("/") if model else "")
+        if frame and model_frame and frame != model_frame:
+            raise ValueError(
+                f"it is in frame '{frame}' but the model clouds are in '{model_frame}' (this node does"
+                " not transform guesses: send it in the model frame)"
+            )
+        scale = float(self.get_parameter("initial_scale").value)
+        return guess_from_message(msg, settings.dims, scale or None)
 
     # --- parameters -----------------------------------------------------------------------------
 
@@ -302,6 +444,9 @@ class RegistrationNode(Node):
             topics = (*ALWAYS_PUBLISHED, "aligned")
         for suffix, message in build_outputs(outcome, data_cloud, self._types, topics).items():
             self._output_publishers[suffix].publish(message)
+        if self._tf_publisher is not None:
+            child = scaled_frame(outcome.data_frame, self._registrar.settings.tf_child_frame)
+            self._tf_publisher.publish(tf_message(outcome, child, self._types))
         latency = None if received_at is None else time.monotonic() - received_at
         self._status.record(outcome, latency, time.perf_counter() - started)
 
@@ -311,7 +456,10 @@ class RegistrationNode(Node):
         with self._pairer_lock:
             unpaired, has_model = self._pairer.unpaired_data, self._pairer.latest_model is not None
         report = self._status.report(
-            self._slot.dropped, unpaired, has_model or self._pairer.mode != "latest_model"
+            self._slot.dropped,
+            unpaired,
+            has_model or self._pairer.mode != "latest_model",
+            guess_pending=self._registrar.pending_guess is not None,
         )
         status = DiagnosticStatus(
             level=bytes([report.level]),
@@ -324,16 +472,29 @@ class RegistrationNode(Node):
         array.header.stamp = self.get_clock().now().to_msg()  # diagnostics describe "now", not a cloud
         self._diagnostics_publisher.publish(array)
 
-    # --- shutdown -------------------------------------------------------------------------------
+
+def _lost_scan_fix() -> str:
+    return (
+        "large clouds need DDS configured for them: give the node and the cloud's publisher the"
+        f" shipped Fast DDS profile (export FASTRTPS_DEFAULT_PROFILES_FILE={shipped_dds_profile()};"
+        " the launch file's large_messages_profile), or data_qos: reliable with a reliable publisher"
+    )
+
+
+class RegistrationNode(RegistrationParts, Node):
+    """The node, registering from construction until ``destroy_node``."""
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(NODE_NAME, **kwargs)
+        parameters.declare(self)
+        self.set_up(self.create_publisher, parameters.current_values(self))
+        self.add_on_set_parameters_callback(self._validate_parameters)
+        self.add_post_set_parameters_callback(self._apply_parameters)
+        self.start_work()
 
     def destroy_node(self) -> None:
         """Stop the worker before the publishers it uses are destroyed."""
-        self._stopping.set()
-        self._slot.close()
-        if self._replay is not None:
-            self._replay.stop(_WORKER_JOIN_SEC)
-        if self._worker.is_alive() and threading.current_thread() is not self._worker:
-            self._worker.join(_WORKER_JOIN_SEC)
+        self.stop_work()
         super().destroy_node()
 
 

@@ -7,6 +7,8 @@ then the core's): the reasons a user sees are those of the table and of ``Regist
 
 from __future__ import annotations
 
+from typing import Protocol
+
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 from rclpy.parameter import Parameter
@@ -14,6 +16,14 @@ from rclpy.parameter import Parameter
 from frisicp_ros.stream.settings import Option, Surface, Value, options_for
 
 NODE_OPTIONS = options_for(Surface.NODE)
+
+
+class HasParameters(Protocol):
+    """A node, plain or managed: what reading the parameters needs."""
+
+    def get_parameter(self, name: str) -> Parameter: ...
+
+
 NAMES = frozenset(o.name for o in NODE_OPTIONS)
 
 
@@ -36,11 +46,11 @@ def declare(node: Node) -> None:
         node.declare_parameter(option.name, option.default, descriptor(option))
 
 
-def current_values(node: Node) -> dict[str, Value]:
+def current_values(node: HasParameters) -> dict[str, Value]:
     return {name: node.get_parameter(name).value for name in NAMES}
 
 
-def with_changes(node: Node, changes: list[Parameter]) -> dict[str, Value]:
+def with_changes(node: HasParameters, changes: list[Parameter]) -> dict[str, Value]:
     values = current_values(node)
     values.update({p.name: p.value for p in changes if p.name in NAMES})
     return values

@@ -8,7 +8,10 @@ Every pair the worker takes ends in exactly one counter: "registered pairs" (a r
 published), "unreliable results" (registered but implausible: not published), "rejected ..."
 (no result) or "publish errors" (an exception while publishing). The level is never OK while the
 last pair failed in any of these ways, and ERROR after :data:`ERROR_AFTER_FAILURES` failures in a
-row or when the registration worker has stopped.
+row or when the registration worker has stopped. It is WARN, with what to do, when no data cloud
+arrived for ``stale_after`` seconds, when ``~/reset`` left no model (a latched map is not sent
+again), and when the data clouds' stamps show that more than :data:`LOST_SHARE_WARN` of them never
+arrived (``stamp_gaps``).
 """
 
 from __future__ import annotations
@@ -20,9 +23,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from frisicp_ros.node.stamp_gaps import StampGaps
 from frisicp_ros.stream.pipeline import PairOutcome, Registered, Rejected
 
 OK, WARN, ERROR = 0, 1, 2  # diagnostic_msgs/DiagnosticStatus levels
+LOST_SHARE_WARN = 0.05  # share of the recent data clouds lost in transport that makes a WARN
+_MIN_LOST = 3  # ... and at least this many (one lost cloud among 20 is no pattern)
 # The timing split of registered pairs, as averaged for /diagnostics.
 _SPLIT = ("conversion", "down-sampling", "registration", "registration CPU", "output")
 ERROR_AFTER_FAILURES = 3  # consecutive failed pairs (rejected, unreliable, error) before ERROR
@@ -36,8 +42,15 @@ class StatusReport:
 
 
 class NodeStatus:
-    def __init__(self, window: int = 200) -> None:
+    def __init__(self, window: int = 200, stale_after: float = 3.0, fix_for_lost_scans: str = "") -> None:
         self._lock = threading.Lock()
+        self._stale_after = stale_after
+        self._fix_for_lost_scans = fix_for_lost_scans
+        self._last_data_at: float | None = None  # time.monotonic() of the last data cloud
+        self._stamp_gaps = StampGaps()
+        self._reset_since_registered = False  # ~/reset and no registered pair since
+        self._guess = ""  # what became of the last initial guess
+        self._tf = "off"
         self._inputs: Counter[str] = Counter()  # since the last report
         self._rejected: Counter[str] = Counter()  # totals by 'model' | 'data' | 'pair'
         self._last_rejection = ""
@@ -57,6 +70,29 @@ class NodeStatus:
         # Per registered pair: conversion, down-sampling, registration (wall, CPU), outputs.
         self._seconds: dict[str, deque[float]] = {key: deque(maxlen=window) for key in _SPLIT}
         self._reported_at = time.monotonic()
+
+    def mark_started(self) -> None:
+        """Work (re)starts: staleness counts from the next data cloud."""
+        with self._lock:
+            self._last_data_at = None
+
+    def count_data(self, stamp_ns: int) -> None:
+        """A data cloud stamped ``stamp_ns`` arrived now (for staleness and lost clouds)."""
+        with self._lock:
+            self._last_data_at = time.monotonic()
+            self._stamp_gaps.add(stamp_ns)
+
+    def record_reset(self) -> None:
+        with self._lock:
+            self._reset_since_registered = True
+
+    def record_guess(self, what: str) -> None:
+        with self._lock:
+            self._guess = what
+
+    def set_tf(self, what: str) -> None:
+        with self._lock:
+            self._tf = what
 
     def count_input(self, topic: str, transport: float | None = None, callback: float | None = None) -> None:
         """A cloud arrived on ``topic``: ``transport`` seconds from its publication to its receipt by
@@ -82,6 +118,7 @@ class NodeStatus:
                 self._failed(f"result implausible, not published (scale {scale:.6g}): {outcome.reason}")
                 return
             self._consecutive_failures = 0
+            self._reset_since_registered = False
             self._registered += 1
             self._registered_since_report += 1
             self._last_registered = outcome
@@ -118,9 +155,13 @@ class NodeStatus:
         self._consecutive_failures += 1
         self._last_failure = what
 
-    def report(self, dropped_pairs: int, unpaired_data: int, has_model: bool) -> StatusReport:
+    def report(
+        self, dropped_pairs: int, unpaired_data: int, has_model: bool, guess_pending: bool = False
+    ) -> StatusReport:
         with self._lock:
             now = time.monotonic()
+            lost, expected = self._stamp_gaps.recent
+            sensor_period = self._stamp_gaps.period_ns
             period = max(now - self._reported_at, 1e-9)
             values = {
                 "model rate (Hz)": f"{self._inputs['model'] / period:.2f}",
@@ -137,13 +178,21 @@ class NodeStatus:
                 "last unreliable result": self._last_unreliable,
                 "publish errors": str(self._publish_errors),
                 "last publish error": self._last_error,
+                "data clouds lost (stamp gaps)": str(self._stamp_gaps.lost_total),
+                "data clouds lost, recent": f"{lost} of {expected}",
+                "data period (ms)": "unknown" if sensor_period is None else f"{sensor_period * 1e-6:.1f}",
+                "seconds since data": (
+                    "never" if self._last_data_at is None else f"{now - self._last_data_at:.1f}"
+                ),
+                "initial guess": ("pending: " if guess_pending else "") + (self._guess or "none"),
+                "/tf": self._tf,
             }
             values.update(self._latency_values())
             values.update(self._result_values())
             self._inputs.clear()
             self._registered_since_report = 0
             self._reported_at = now
-            level, message = self._level(has_model)
+            level, message = self._level(has_model, now, lost, expected, sensor_period)
             return StatusReport(level, message, values)
 
     def _latency_values(self) -> dict[str, str]:
@@ -204,16 +253,44 @@ class NodeStatus:
             "last converged": str(result.converged),
             "last stamp (ns)": str(outcome.stamp_ns),
             "warm started": str(outcome.warm_started),
+            **_uncertainty_values(outcome),
         }
 
-    def _level(self, has_model: bool) -> tuple[int, str]:
+    def _level(
+        self, has_model: bool, now: float, lost: int, expected: int, sensor_period: float | None
+    ) -> tuple[int, str]:
         if self._worker_stopped is not None:
             return ERROR, f"registration worker stopped: {self._worker_stopped}"
         failures = self._consecutive_failures
         if failures >= ERROR_AFTER_FAILURES:
             return ERROR, f"last {failures} pairs failed; last: {self._last_failure}"
+        if self._last_data_at is not None and now - self._last_data_at > self._stale_after:
+            return WARN, f"no data for {now - self._last_data_at:.0f} s (stale_after {self._stale_after:g} s)"
         if failures:
             return WARN, f"last {self._last_failure}"
-        if self._last_registered is None:
+        if self._reset_since_registered and not has_model:
+            return WARN, (
+                "no model since ~/reset: a latched map is not sent again; republish the model"
+                " (or restart its publisher)"
+            )
+        if lost >= _MIN_LOST and lost > LOST_SHARE_WARN * expected:
+            sensor = "" if sensor_period is None else f", sensor period {sensor_period * 1e-6:.0f} ms"
+            return WARN, (
+                f"{lost} of the last {expected} data clouds never arrived (gaps in their header"
+                f" stamps{sensor}); {self._fix_for_lost_scans}"
+            )
+        if self._last_registered is None or self._reset_since_registered:
             return WARN, "waiting for clouds" if has_model else "waiting for a model cloud"
         return OK, "registering"
+
+
+def _uncertainty_values(outcome: Registered) -> dict[str, str]:
+    """The last result's 1-sigma uncertainty (frisicp_core.uncertainty), when estimated."""
+    uncertainty = outcome.result.uncertainty
+    if uncertainty is None:
+        return {"last uncertainty": "not estimated"}
+    return {
+        "last scale sigma (relative)": f"{uncertainty.scale:.3g}",
+        "last rotation sigma (deg)": f"{uncertainty.rotation_deg:.3g}",
+        "last translation sigma": f"{uncertainty.translation:.3g}",
+    }

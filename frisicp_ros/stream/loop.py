@@ -27,6 +27,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol, TypeVar
 
 from frisicp_core import Similarity
+from frisicp_core.config import InitialGuess
 from frisicp_ros.stream.pipeline import PairOutcome, RegistrationPipeline
 from frisicp_ros.stream.settings import PipelineSettings
 
@@ -116,6 +117,7 @@ class SequentialRegistrar:
         self._pipeline = RegistrationPipeline(settings)
         self._lock = threading.Lock()
         self._requested_settings: PipelineSettings | None = None
+        self._requested_guess: InitialGuess | None = None
         self._reset_requested = threading.Event()
 
     @property
@@ -138,6 +140,17 @@ class SequentialRegistrar:
         with self._lock:
             self._requested_settings = settings
 
+    @property
+    def pending_guess(self) -> InitialGuess | None:
+        """An initial guess requested or set that no registration has used yet."""
+        return self._requested_guess or self._pipeline.guess
+
+    def request_guess(self, guess: InitialGuess) -> None:
+        """Any thread: register the next pair around ``guess`` (cold, its sigmas bound the
+        search); tracking goes on from that result."""
+        with self._lock:
+            self._requested_guess = guess
+
     def request_reset(self) -> None:
         """Any thread: forget warm start, cached model and frames before the next pair; the pair
         being registered now (if any) is dropped."""
@@ -155,11 +168,14 @@ class SequentialRegistrar:
         loop calls it so a reset takes effect at once)."""
         with self._lock:
             settings, self._requested_settings = self._requested_settings, None
+            guess, self._requested_guess = self._requested_guess, None
         if settings is not None:
             self._pipeline.update_settings(settings)
         if self._reset_requested.is_set():
             self._reset_requested.clear()
             self._pipeline.reset()
+        if guess is not None:
+            self._pipeline.guess_next(guess)
 
 
 @dataclass(frozen=True)

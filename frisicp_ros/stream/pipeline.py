@@ -31,6 +31,7 @@ from typing import Any, Literal
 import numpy as np
 
 from frisicp_core import RegistrationResult, Similarity, register
+from frisicp_core.config import InitialGuess
 from frisicp_core.points import rms_radius
 from frisicp_core.sampling import in_spatial_order
 from frisicp_ros.stream.motion import MotionTracker
@@ -129,6 +130,7 @@ class RegistrationPipeline:
         self._motion = MotionTracker()  # the last consecutive reliable results
         self._model_cache: tuple[Any, np.ndarray] | None = None
         self._frames: dict[str, str] = {}
+        self._guess: InitialGuess | None = None
 
     @property
     def previous(self) -> Similarity | None:
@@ -144,8 +146,19 @@ class RegistrationPipeline:
             return self.previous
         return self._motion.predict(stamp_ns)
 
+    @property
+    def guess(self) -> InitialGuess | None:
+        """The initial guess the next registration will search around (None: none pending)."""
+        return self._guess
+
+    def guess_next(self, guess: InitialGuess | None) -> None:
+        """Register the next pair cold, searching around ``guess`` (its sigmas bound the search)
+        instead of from the warm start; later pairs track from that result as usual."""
+        self._guess = guess
+
     def reset(self) -> None:
-        """Forget the warm start, the cached model and the frames seen so far."""
+        """Forget the warm start, the cached model and the frames seen so far (not a pending
+        guess: that is the user's latest word on where the data is)."""
         self._motion.reset()
         self._model_cache = None
         self._frames = {}
@@ -165,6 +178,7 @@ class RegistrationPipeline:
     def process(self, model_msg: Any, data_msg: Any) -> PairOutcome:
         """The outcome of one pair; only a reliable result is kept as the next warm start."""
         header = pair_header(model_msg, data_msg, self.settings.dims)
+        guessed = self._guess is not None
         try:
             outcome = self._process(header, model_msg, data_msg)
         except Exception as err:  # noqa: BLE001 - a stream must outlive any one pair
@@ -172,6 +186,8 @@ class RegistrationPipeline:
             # still reported per pair (with its type) instead of ending the stream.
             outcome = Rejected(**vars(header), reason=f"unexpected {describe(err)}", input="pair")
         if isinstance(outcome, Registered) and outcome.reliable:
+            if guessed and self._guess is None:  # the guess was used: no velocity across it
+                self._motion.reset()
             self._motion.update(header.stamp_ns, outcome.result.similarity)
         else:
             self._motion.reset()  # a rejection or an implausible result: next pair starts cold
@@ -190,10 +206,14 @@ class RegistrationPipeline:
             data = self._read(data_msg)
         except CloudError as err:
             return Rejected(**vars(header), reason=f"data cloud: {err}", input="data")
-        initial = self.warm_start_for(header.stamp_ns)
+        # A pending guess replaces the warm start for this one registration (used up even when the
+        # core refuses the pair: a guess is for the next registration, not for a later one).
+        guess, self._guess = self._guess, None
+        initial = None if guess is not None else self.warm_start_for(header.stamp_ns)
+        config = replace(settings.registration, initial=initial, guess=guess)
         started, started_cpu = time.perf_counter(), time.thread_time()
         try:
-            result = register(data.points, model_points, replace(settings.registration, initial=initial))
+            result = register(data.points, model_points, config)
         except ValueError as err:  # degenerate geometry, too few points, coordinates that overflow
             timings = _timings(model_read, data, started, started_cpu)
             return Rejected(**vars(header), reason=f"registration: {err}", input="pair", timings=timings)

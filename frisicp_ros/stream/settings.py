@@ -195,6 +195,29 @@ OPTIONS: tuple[Option, ...] = (
         choices=DATA_QOS_CHOICES,
     ),
     node_option("diagnostics_period", 1.0, "seconds between /diagnostics messages", bounds=(0.1, 60.0)),
+    node_option(
+        "stale_after",
+        3.0,
+        '/diagnostics says WARN "no data for N s" when no data cloud has arrived for this many'
+        " seconds (after the first one)",
+        bounds=(0.1, 3600.0),
+    ),
+    node_option(
+        "publish_tf",
+        False,
+        "also publish each reliable result on /tf (tf2_msgs/TFMessage): model frame -> tf_child_frame,"
+        " the data frame scaled by s; needs tf2_msgs (a ROS installation: not on PyPI)",
+    ),
+    option(
+        "initial_scale",
+        0.0,
+        "scale s of the initial guesses on ~/initial_guess (model = s R data + t), taken as known"
+        " within 1 %; 0 = unknown (searched)",
+        Surface.NODE,
+        Group.NODE,
+        bounds=(0.0, 1e9),
+        zero_means="unknown",
+    ),
     # --- the node replaying a bag (frisicp_ros.node.replay) ------------------------------------
     replay_option(
         "bag",
@@ -265,6 +288,12 @@ OPTIONS: tuple[Option, ...] = (
         "warm start of a moving sensor: constant_velocity (the last result moved on by the sensor's"
         " recent velocity for the stamp gap; needs increasing stamps) or none (the last result)",
         choices=MOTION_MODELS,
+    ),
+    stream_option(
+        "tf_child_frame",
+        "",
+        "child frame of the /tf transforms (node with publish_tf, frisicp bag's result bag): the data"
+        " frame scaled by s; empty = '<data frame>_scaled'",
     ),
     stream_option("model_frame", "", "expected frame id of the model clouds; empty = accept any"),
     stream_option("data_frame", "", "expected frame id of the data clouds; empty = accept any"),
@@ -353,8 +382,9 @@ OPTIONS: tuple[Option, ...] = (
     ),
 )
 OPTIONS_BY_NAME: dict[str, Option] = {o.name: o for o in OPTIONS}
-# RegistrationConfig fields that are no option: the pipeline sets the warm start itself.
-NOT_OPTIONS = ("initial",)
+# RegistrationConfig fields that are no option: the pipeline sets the warm start itself, and an
+# initial guess comes as a pose (~/initial_guess, --initial; frisicp_ros.stream.guess).
+NOT_OPTIONS = ("initial", "guess")
 
 
 def options_for(surface: Surface, groups: Iterable[Group] = tuple(Group)) -> tuple[Option, ...]:
@@ -432,6 +462,7 @@ class PipelineSettings:
     model_frame: str
     data_frame: str
     publish_aligned: bool
+    tf_child_frame: str
     registration: RegistrationConfig
 
     def __post_init__(self) -> None:
@@ -536,5 +567,48 @@ def _yaml_value(value: Value) -> str:
 _YAML_WORDS = {"true", "false", "yes", "no", "on", "off", "null", "y", "n"}  # would not read as strings
 
 
+# --- the parameter tables of docs/node.md and README.md ------------------------------------------
+
+TABLE_BEGIN = "<!-- parameters: generated from frisicp_ros/stream/settings.py by `make config` -->"
+TABLE_END = "<!-- end of the generated parameters -->"
+
+
+def render_markdown_table() -> str:
+    """Every node parameter as a Markdown table: name, type, default, range or choices, meaning."""
+    rows = [
+        TABLE_BEGIN,
+        "",
+        "| parameter | type | default | range / choices | meaning |",
+        "|---|---|---|---|---|",
+    ]
+    for group in Group:
+        for row in options_for(Surface.NODE, [group]):
+            limits = " \\| ".join(row.choices) if row.choices else ""
+            if row.bounds is not None:
+                limits = f"[{_number(row.bounds[0])}, {_number(row.bounds[1])}]"
+            default = _yaml_value(row.default) if row.default != "" else '""'
+            flags = f" ({group.value}{', read-only' if row.read_only else ''})"
+            rows.append(
+                f"| `{row.name}` | {row.kind.__name__} | `{default}` | {limits} | {row.description}{flags} |"
+            )
+    rows += ["", TABLE_END]
+    return "\n".join(rows)
+
+
+def with_table(text: str) -> str:
+    """``text`` (a Markdown file) with its generated parameter table replaced by the current one."""
+    begin, end = text.index(TABLE_BEGIN), text.index(TABLE_END) + len(TABLE_END)
+    return text[:begin] + render_markdown_table() + text[end:]
+
+
 if __name__ == "__main__":
-    print(render_yaml(), end="")
+    import sys
+
+    if sys.argv[1:2] == ["--markdown"]:  # rewrite the tables of the given Markdown files
+        for name in sys.argv[2:]:
+            with open(name, encoding="utf-8") as file:
+                current = file.read()
+            with open(name, "w", encoding="utf-8") as file:
+                file.write(with_table(current))
+    else:
+        print(render_yaml(), end="")

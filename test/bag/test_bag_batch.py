@@ -77,6 +77,20 @@ def test_each_bag_gets_its_own_jsonl_and_result_bag_with_the_lines_of_a_run_of_i
     assert "12/12" in err  # one progress bar across the batch, in data clouds
 
 
+def test_plots_draw_each_bag_over_time_beside_its_results(capsys, bags, tmp_path):
+    from support.png import png_size
+
+    out = tmp_path / "out"
+    code, _, err = run(
+        capsys, bags["bare"], bags["folder_mcap"], "--out-dir", out, "--plots", "--no-progress"
+    )
+    assert code == 0, err
+    for name in ("bare", "folder_mcap"):
+        assert f"frisicp bag: {name}: picture {out / name}.png" in err, err
+        width, height = png_size(out / f"{name}.png")
+        assert height > width > 400
+
+
 def test_warm_start_starts_again_cold_with_every_bag(capsys, bags, tmp_path):
     """--jobs 1 warm-starts each pair from the one before, but never across two bags."""
     out = tmp_path / "out"
@@ -119,8 +133,13 @@ def test_a_batch_with_no_readable_bag_exits_2(capsys, tmp_path):
     ("extra", "message"),
     [
         ([], "2 bags need --out-dir DIR"),
-        (["--out-dir", "{tmp}/o", "--out", "{tmp}/x.jsonl"], "leave out --out and --out-bag"),
+        (["--out-dir", "{tmp}/o", "--out", "{tmp}/x.jsonl"], "leave out --out, --out-bag and --plot"),
+        (
+            ["--out-dir", "{tmp}/o", "--plot", "{tmp}/x.png"],
+            "--plots give a result bag and a picture per bag",
+        ),
         (["--result-bags"], "--result-bags applies only with --out-dir"),
+        (["--plots"], "--plots applies only with --out-dir"),
         (
             ["--out-dir", "{tmp}/o", "--jobs", "2", "--scheduler", "tcp://127.0.0.1:1"],
             "--jobs is for this machine",

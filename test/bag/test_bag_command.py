@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -26,6 +27,7 @@ from support.bags import (
     write_ros1_bag,
     write_rosbag2,
 )
+from support.scripts import installed_script
 
 from frisicp_core import Similarity, bumpy_surface
 from frisicp_ros.cli import main as cli
@@ -62,6 +64,14 @@ def run_cli(capsys, *argv: str) -> tuple[int, str, str]:
 
 def bag_args(bag: Path, *extra: str) -> list[str]:
     return ["bag", str(bag), "--model-topic", MODEL_TOPIC, "--data-topic", DATA_TOPIC, *extra]
+
+
+def rotation_angle_deg(matrix) -> float:
+    return float(np.degrees(np.arccos(np.clip((np.trace(matrix) - 1) / 2, -1.0, 1.0))))
+
+
+def stamp_ns_of(header) -> int:
+    return header.stamp.sec * 10**9 + header.stamp.nanosec
 
 
 def read_jsonl(text: str) -> list[dict]:
@@ -187,10 +197,12 @@ def test_result_bag_reads_back_with_the_node_topics_and_original_stamps(capsys, 
     with AnyReader([out_bag]) as reader:
         assert {t: i.msgtype for t, i in reader.topics.items()} == {
             "/frisicp/transform": "geometry_msgs/msg/TransformStamped",
-            "/frisicp/scale": "std_msgs/msg/Float64",
-            "/frisicp/rms": "std_msgs/msg/Float64",
+            "/frisicp/pose": "geometry_msgs/msg/PoseWithCovarianceStamped",
+            "/frisicp/scale": "geometry_msgs/msg/Vector3Stamped",
+            "/frisicp/rms": "geometry_msgs/msg/Vector3Stamped",
             "/frisicp/similarity": "std_msgs/msg/Float64MultiArray",
             "/frisicp/aligned": "sensor_msgs/msg/PointCloud2",
+            "/tf": "tf2_msgs/msg/TFMessage",
         }
         seen: dict[str, list[int]] = {}
         for connection, stamp_ns, raw in reader.messages():
@@ -198,6 +210,7 @@ def test_result_bag_reads_back_with_the_node_topics_and_original_stamps(capsys, 
             record = records[stamp_ns]  # log time = the data cloud's bag time
             seen.setdefault(connection.topic, []).append(stamp_ns)
             suffix = connection.topic.rsplit("/", 1)[1]
+            header_ns = None
             if suffix == "transform":
                 header_ns = msg.header.stamp.sec * 10**9 + msg.header.stamp.nanosec
                 assert header_ns == record["header_stamp_ns"]
@@ -206,10 +219,32 @@ def test_result_bag_reads_back_with_the_node_topics_and_original_stamps(capsys, 
                 np.testing.assert_allclose([q.x, q.y, q.z, q.w], record["quaternion_xyzw"], atol=1e-12)
                 t = msg.transform.translation
                 np.testing.assert_allclose([t.x, t.y, t.z], record["translation"], atol=1e-12)
+            elif suffix == "pose":
+                assert (
+                    stamp_ns_of(msg.header) == record["header_stamp_ns"]
+                    and msg.header.frame_id == MODEL_FRAME
+                )
+                p, q = msg.pose.pose.position, msg.pose.pose.orientation
+                np.testing.assert_allclose([p.x, p.y, p.z], record["translation"], atol=1e-12)
+                np.testing.assert_allclose([q.x, q.y, q.z, q.w], record["quaternion_xyzw"], atol=1e-12)
+                covariance = np.asarray(msg.pose.covariance).reshape(6, 6)
+                assert np.all(np.diag(covariance) > 0) and np.allclose(covariance, covariance.T)
             elif suffix == "scale":
-                assert msg.data == pytest.approx(record["scale"], rel=1e-12)
+                assert stamp_ns_of(msg.header) == record["header_stamp_ns"]
+                assert msg.vector.x == pytest.approx(record["scale"], rel=1e-12)
+                sigma = record["uncertainty"]["scale"]
+                assert (msg.vector.y, msg.vector.z) == pytest.approx((record["scale"] * sigma, sigma))
             elif suffix == "rms":
-                assert msg.data == pytest.approx(record["rms"], rel=1e-12)
+                assert msg.vector.x == pytest.approx(record["rms"], rel=1e-12)
+            elif suffix == "tf":
+                (transform,) = msg.transforms
+                assert stamp_ns_of(transform.header) == record["header_stamp_ns"]
+                assert (transform.header.frame_id, transform.child_frame_id) == (
+                    MODEL_FRAME,
+                    f"{DATA_FRAME}_scaled",
+                )
+                t = transform.transform.translation
+                np.testing.assert_allclose([t.x, t.y, t.z], record["translation"], atol=1e-12)
             elif suffix == "similarity":
                 matrix = np.asarray(msg.data).reshape(4, 4)
                 estimate = Similarity.from_matrix(matrix)
@@ -240,10 +275,12 @@ def test_no_aligned_leaves_the_cloud_topic_out(capsys, bags, tmp_path):
     assert code == 0, err
     with AnyReader([out_bag]) as reader:
         assert sorted(reader.topics) == [
+            "/robot/frisicp/pose",
             "/robot/frisicp/rms",
             "/robot/frisicp/scale",
             "/robot/frisicp/similarity",
             "/robot/frisicp/transform",
+            "/tf",
         ]
         assert all(info.msgcount == 4 for info in reader.topics.values())
 
@@ -451,7 +488,7 @@ def test_a_closed_results_pipe_stops_cleanly_and_keeps_the_result_bag(bags, tmp_
     """`frisicp bag ... | head -0`: no BrokenPipeError traceback, the result bag is finished."""
     out_bag = tmp_path / "piped"
     command = [
-        str(Path(sys.executable).parent / "frisicp"),
+        installed_script("frisicp"),
         *bag_args(bags["rosbags-mcap"], "--out-bag", str(out_bag), "--no-progress"),
     ]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -509,3 +546,61 @@ def test_a_damaged_but_decodable_cloud_is_marked_unreliable_not_reported_as_a_po
     assert ("unreliable 1" in err) or ("rejected 1" in err), err
     with AnyReader([out_bag]) as reader:
         assert reader.topics["/frisicp/transform"].msgcount == 2
+
+
+def test_plot_draws_the_bag_over_time(capsys, bags, tmp_path):
+    from support.png import png_size
+
+    picture = tmp_path / "over_time.png"
+    code, _, err = run_cli(capsys, *bag_args(bags["rosbags-mcap"], "--plot", str(picture)))
+    assert code == 0 and f"picture {picture}" in err, err
+    width, height = png_size(picture)
+    assert height > width > 400 and picture.stat().st_size < 200_000
+
+
+def test_initial_guess_steers_the_first_pair_and_tracking_follows(capsys, tmp_path):
+    """The turned strip of test_guess in a bag: blind, every pair is 120 degrees off (tracking
+    keeps the wrong answer); with --initial every pair is right, in every bag of a batch; refused
+    where parallel chunks would start blind."""
+    from support.bags import CloudRecord
+    from support.guess_scene import turned_crop_clouds
+
+    from frisicp_ros.stream.outputs import rosbags_message_types
+    from frisicp_ros.stream.pointcloud2 import cloud_to_points
+
+    model, data, truth, rough = turned_crop_clouds(rosbags_message_types())
+    records = [CloudRecord(MODEL_TOPIC, 1, 1, MODEL_FRAME, cloud_to_points(model, 3))]
+    for k, cloud in enumerate(data):
+        stamp = stamp_ns_of(cloud.header)
+        records.append(CloudRecord(DATA_TOPIC, 10 + k, stamp, DATA_FRAME, cloud_to_points(cloud, 3)))
+    bag = write_rosbag2(tmp_path / "turned", records, storage="mcap")
+    pose = " ".join(str(v) for v in [*rough.translation, *rough.quaternion()])
+
+    def errors(*extra: str) -> list[float]:
+        code, out, err = run_cli(capsys, *bag_args(bag, "--max-points", "0", *extra))
+        assert code == 0, err
+        return [rotation_angle_deg(np.array(r["rotation"]).T @ truth.rotation) for r in read_jsonl(out)]
+
+    assert all(error > 10.0 for error in errors())
+    # Two bags (the same recording): the guess steers the first pair of each, which starts cold
+    # as if registered alone, so both get the same right lines.
+    shutil.copytree(bag, tmp_path / "again")
+    out = tmp_path / "out"
+    code, _, err = run_cli(
+        capsys,
+        "bag",
+        str(bag),
+        str(tmp_path / "again"),
+        *bag_args(bag)[2:],
+        *("--out-dir", str(out), "--max-points", "0", "--no-progress"),
+        *("--initial", pose, "--initial-sigma", "5,0.1"),
+    )
+    assert code == 0, err
+    turned, again = (read_jsonl((out / f"{name}.jsonl").read_text()) for name in ("turned", "again"))
+    assert [r["rotation"] for r in turned] == [r["rotation"] for r in again]
+    assert all(rotation_angle_deg(np.array(r["rotation"]).T @ truth.rotation) < 0.5 for r in turned)
+    for parallel in (["--jobs", "2"], ["--scheduler", "tcp://127.0.0.1:1"]):
+        code, _, err = run_cli(
+            capsys, *bag_args(bag, "--initial", pose, "--initial-sigma", "5,0.1", *parallel)
+        )
+        assert code == 2 and "leave out --jobs N and --scheduler" in err, err

@@ -12,7 +12,6 @@ import json
 import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -28,10 +27,11 @@ from support.bags import (
     truth_for,
     write_rosbag2,
 )
+from support.scripts import installed_script
 
 from frisicp_core import bumpy_surface
 
-FRISICP = Path(sys.executable).parent / "frisicp"
+FRISICP = installed_script("frisicp")
 INT, TERM = signal.SIGINT, signal.SIGTERM
 TOPICS = ("--model-topic", MODEL_TOPIC, "--data-topic", DATA_TOPIC)
 

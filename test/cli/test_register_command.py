@@ -2,18 +2,19 @@
 
 import json
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 from plyfile import PlyData, PlyElement
 from pypcd4 import Encoding, PointCloud
+from support.png import png_size
+from support.scripts import installed_script
 
 from frisicp_core import Similarity, bumpy_surface, rotation_angle
 from frisicp_core.io import CloudFileError, read_points
 
-FRISICP = str(Path(sys.executable).with_name("frisicp"))
+FRISICP = installed_script("frisicp")
 MODEL = bumpy_surface(2000, seed=3)
 TRUTH = Similarity.from_quaternion(2.5, [0.1, 0.2, 0.3, 0.9], [0.5, -1.0, 2.0])
 DATA = TRUTH.inverse().apply(MODEL)
@@ -173,3 +174,48 @@ def test_an_implausible_result_is_said_and_exits_1(tmp_path, capsys, monkeypatch
             assert json.loads(out)["reliable"] is False and "1.5e+40" in json.loads(out)["reason"]
         else:
             assert "reliable     False  (scale 1.5e+40 is far from the size ratio)" in out
+
+
+def test_plot_draws_before_after_and_distances_into_a_png(tmp_path, capsys):
+    from frisicp_ros.cli import main as cli
+
+    np.save(tmp_path / "data.npy", DATA)
+    np.save(tmp_path / "model.npy", MODEL)
+    picture = tmp_path / "alignment.png"
+    code = cli.main(
+        ["register", str(tmp_path / "data.npy"), str(tmp_path / "model.npy"), "--plot", str(picture)]
+    )
+    assert code == 0, capsys.readouterr().err
+    width, height = png_size(picture)
+    assert width > 2 * height > 500  # three views and the histogram, two rows
+    assert picture.stat().st_size < 200_000
+
+
+def test_initial_guess_finds_what_the_blind_search_misses(tmp_path, capsys):
+    """The turned 30 % strip of test_guess: blind 120 degrees off, with --initial right."""
+    from support.guess_scene import turned_crop_clouds
+
+    from frisicp_ros.cli import main as cli
+    from frisicp_ros.stream.outputs import rosbags_message_types
+    from frisicp_ros.stream.pointcloud2 import cloud_to_points
+
+    model, (data, *_), truth, rough = turned_crop_clouds(rosbags_message_types())
+    np.save(tmp_path / "data.npy", cloud_to_points(data, 3))
+    np.save(tmp_path / "model.npy", cloud_to_points(model, 3))
+    files = [str(tmp_path / "data.npy"), str(tmp_path / "model.npy"), "--json"]
+
+    def rotation_error(out: str) -> float:
+        return np.degrees(rotation_angle(np.array(json.loads(out)["rotation"]).T @ truth.rotation))
+
+    cli.main(["register", *files])
+    assert rotation_error(capsys.readouterr().out) > 10.0
+    pose = " ".join(str(v) for v in [*rough.translation, *rough.quaternion()])
+    assert cli.main(["register", *files, "--initial", pose, "--initial-sigma", "5,0.1"]) == 0
+    assert rotation_error(capsys.readouterr().out) < 0.5
+    for extra, message in (
+        (["--initial-sigma", "5,0.1"], "--initial-sigma applies only with --initial"),
+        (["--initial", pose], "--initial needs --initial-sigma"),
+        (["--initial", "1 2 3", "--initial-sigma", "5,0.1"], "7 or 8 numbers"),
+    ):
+        assert cli.main(["register", *files, *extra]) == 2
+        assert message in capsys.readouterr().err

@@ -8,7 +8,17 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[2]
-ROS = ("rclpy", "rcl_interfaces", "sensor_msgs", "geometry_msgs", "std_msgs", "std_srvs", "diagnostic_msgs")
+ROS = (
+    "rclpy",
+    "rcl_interfaces",
+    "sensor_msgs",
+    "geometry_msgs",
+    "std_msgs",
+    "std_srvs",
+    "diagnostic_msgs",
+    "lifecycle_msgs",
+    "tf2_msgs",
+)
 # What each layer must not import, anywhere in it (also inside functions).
 FORBIDDEN = {
     "frisicp_core": ("frisicp_ros", "frisicp_bench", "rosbags", *ROS),

@@ -15,19 +15,21 @@ the first run installs from PyPI (about a minute with pip's cache).
 from __future__ import annotations
 
 import ast
-import hashlib
-import os
-import shutil
 import signal
 import subprocess
-import sys
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 from support.ros import ros_environment, spinning_node, wait_until
+from support.workspace import (
+    RUNTIME_AND_TESTS,
+    clean_environment,
+    clean_venv,
+    copy_source,
+    declared,
+    requirements,
+)
 
 DOMAIN = 137
 ENV = ros_environment(DOMAIN)
@@ -37,41 +39,6 @@ from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 ROOT = Path(__file__).resolve().parents[2]
-# rosdep keys of ROS packages and of standard Python libraries -> PyPI requirement. None: not on
-# PyPI (launch, launch_ros: only the launch file needs them; it is checked statically).
-ROSDEP_TO_PYPI: dict[str, str | None] = {
-    "rclpy": "ros-jazzy-rclpy[fastrtps]",  # with an RMW, so the node can run
-    "sensor_msgs": "ros-jazzy-sensor-msgs",
-    "geometry_msgs": "ros-jazzy-geometry-msgs",
-    "std_msgs": "ros-jazzy-std-msgs",
-    "diagnostic_msgs": "ros-jazzy-diagnostic-msgs",
-    "std_srvs": "ros-jazzy-std-srvs",
-    "rcl_interfaces": "ros-jazzy-rcl-interfaces",
-    "ament_index_python": "ros-jazzy-ament-index-python",
-    "launch": None,
-    "launch_ros": None,
-    "python3-numpy": "numpy",
-    "python3-scipy": "scipy",
-    "python3-tqdm": "tqdm",
-}
-BUILD_TOOL = "colcon-common-extensions"
-
-
-def exec_depends() -> list[str]:
-    return [element.text or "" for element in ET.parse(ROOT / "package.xml").getroot().iter("exec_depend")]
-
-
-def pip_keys() -> dict[str, str]:
-    """The pip rosdep keys this package defines (rosdep/frisicp_ros.yaml) -> PyPI name."""
-    rules = yaml.safe_load((ROOT / "rosdep" / "frisicp_ros.yaml").read_text())
-    return {key: rule["ubuntu"]["pip"]["packages"][0] for key, rule in rules.items()}
-
-
-def requirements() -> list[str]:
-    known = {**ROSDEP_TO_PYPI, **pip_keys()}
-    unknown = [key for key in exec_depends() if key not in known]
-    assert not unknown, f"package.xml names {unknown}: add their PyPI names to ROSDEP_TO_PYPI"
-    return sorted(requirement for key in exec_depends() if (requirement := known[key]))
 
 
 def install_requires() -> list[str]:
@@ -88,36 +55,6 @@ def test_every_python_requirement_of_setup_py_is_declared_in_package_xml():
     declared = {requirement.split("[")[0] for requirement in requirements()}
     missing = sorted(set(install_requires()) - declared)
     assert not missing, f"setup.py requires {missing} but package.xml does not declare them"
-
-
-def clean_venv() -> Path:
-    wanted = [*requirements(), BUILD_TOOL]
-    digest = hashlib.sha256("\n".join([sys.version, *wanted]).encode()).hexdigest()[:12]
-    venv = ROOT / "build" / f"clean-env-{digest}"
-    if (venv / "ready").exists():
-        return venv
-    shutil.rmtree(venv, ignore_errors=True)
-    subprocess.run([sys.executable, "-m", "venv", str(venv)], check=True, timeout=120)
-    pip = subprocess.run(
-        [str(venv / "bin" / "pip"), "install", "--quiet", *wanted],
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    assert pip.returncode == 0, pip.stderr[-3000:]
-    (venv / "ready").write_text("\n".join(wanted) + "\n")
-    return venv
-
-
-def clean_environment(venv: Path, prefix: Path | None = None) -> dict[str, str]:
-    """The dev environment's ROS settings only: no PYTHONPATH, no other venv."""
-    env = {key: value for key, value in ENV.items() if key not in ("PYTHONPATH", "VIRTUAL_ENV", "PYTHONHOME")}
-    env["PATH"] = f"{venv / 'bin'}{os.pathsep}/usr/bin{os.pathsep}/bin"
-    env["VIRTUAL_ENV"] = str(venv)
-    if prefix is not None:
-        env["PYTHONPATH"] = str(next(prefix.glob("lib/python3*/site-packages")))
-        env["AMENT_PREFIX_PATH"] = str(prefix)
-    return env
 
 
 USES_EVERY_DEPENDENCY = """
@@ -144,27 +81,36 @@ def diagnostics():
         yield received
 
 
+def test_every_test_dependency_is_declared_and_resolvable():
+    """`colcon test` needs them in the workspace: what test/ imports or runs, as test_depend keys."""
+    keys = declared(RUNTIME_AND_TESTS)
+    for key in (
+        "python3-pytest",
+        "python3-yaml",
+        "python3-mcap-ros2-support-pip",
+        "python3-threadpoolctl-pip",
+        "python3-distributed-pip",
+    ):
+        assert key in keys, key
+    assert {"mcap-ros2-support", "threadpoolctl", "distributed", "pyyaml", "pillow", "pytest"} <= set(
+        requirements(RUNTIME_AND_TESTS)
+    )
+
+
 def test_built_with_only_package_xml_dependencies_the_node_starts_answers_and_stops(tmp_path, diagnostics):
     venv = clean_venv()
-    source = tmp_path / "src" / "frisicp_ros"
-    shutil.copytree(
-        ROOT,
-        source,
-        ignore=shutil.ignore_patterns(
-            ".venv", "build", "install", "log", ".git", "__pycache__", "*.egg-info"
-        ),
-    )
+    copy_source(tmp_path)
     build = subprocess.run(
         [str(venv / "bin" / "colcon"), "build"],
         cwd=tmp_path,
-        env=clean_environment(venv),
+        env=clean_environment(venv, ENV),
         capture_output=True,
         text=True,
         timeout=300,
     )
     assert build.returncode == 0, build.stdout[-3000:] + build.stderr[-3000:]
     prefix = tmp_path / "install" / "frisicp_ros"
-    env = clean_environment(venv, prefix)
+    env = clean_environment(venv, ENV, prefix)
 
     ply, pcd = tmp_path / "cloud.ply", tmp_path / "cloud.pcd"
     write_ply_and_pcd(np.random.default_rng(0).normal(size=(50, 3)), ply, pcd)

@@ -62,17 +62,23 @@ def test_colcon_build_installs_what_ros2_run_and_launch_need(tmp_path, options):
     prefix = build(tmp_path, *options)
     share = prefix / "share" / "frisicp_ros"
     register_node = prefix / "lib" / "frisicp_ros" / "register_node"
-    assert os.access(register_node, os.X_OK)
+    for script in ("register_node", "register_lifecycle_node", "frisicp-demo", "frisicp"):
+        assert os.access(prefix / "lib" / "frisicp_ros" / script, os.X_OK), script
     assert (prefix / "share" / "ament_index" / "resource_index" / "packages" / "frisicp_ros").exists()
-    for relative in ("package.xml", "config/frisicp.yaml", "launch/register.launch.py"):
+    for relative in (
+        "package.xml",
+        "config/frisicp.yaml",
+        "config/frisicp.rviz",
+        "config/fastdds_large_messages.xml",
+        "launch/register.launch.py",
+    ):
         assert (share / relative).is_file(), relative
     assert (share / "config" / "frisicp.yaml").read_text() == (ROOT / "config" / "frisicp.yaml").read_text()
 
-    site_packages = next(prefix.glob("lib/python3*/site-packages"))
     env = dict(
         os.environ,
         AMENT_PREFIX_PATH=str(prefix),
-        PYTHONPATH=str(site_packages),
+        PYTHONPATH=sourced_pythonpath(prefix),
         ROS_DOMAIN_ID=DOMAIN_ID,
         ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
     )
@@ -99,11 +105,63 @@ def test_colcon_build_installs_what_ros2_run_and_launch_need(tmp_path, options):
     assert run.returncode == 2 and "method must be one of" in run.stderr, run.stderr
 
 
+def test_ros2_run_frisicp_demo_works_in_a_workspace_and_keeps_the_users_domain(tmp_path):
+    """What `ros2 run frisicp_ros frisicp-demo` runs: lib/frisicp_ros/frisicp-demo, with the
+    workspace sourced (PYTHONPATH, AMENT_PREFIX_PATH) and register_node only beside it."""
+    prefix = build(tmp_path)
+    env = dict(
+        os.environ,
+        AMENT_PREFIX_PATH=str(prefix),
+        PYTHONPATH=sourced_pythonpath(prefix),
+        PATH=f"/usr/bin{os.pathsep}/bin",  # neither the venv's bin nor the workspace's lib on PATH
+        ROS_DOMAIN_ID=DOMAIN_ID,
+        ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST",
+    )
+    picture = tmp_path / "last.png"
+    demo = subprocess.run(
+        [str(prefix / "lib" / "frisicp_ros" / "frisicp-demo"), "--duration", "2", "--plot", str(picture)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=120,
+    )
+    assert demo.returncode == 0, demo.stdout[-2000:] + demo.stderr[-2000:]
+    assert f"ROS domain {DOMAIN_ID}" in demo.stdout
+    assert "register_node stopped cleanly" in demo.stdout
+    assert picture.stat().st_size > 10_000
+
+
+def sourced_pythonpath(prefix: Path) -> str:
+    """PYTHONPATH as sourcing the workspace sets it: the package's environment hooks (share/<pkg>/
+    package.dsv and the files it sources; a --symlink-install adds the build folder)."""
+    entries: list[str] = []
+
+    def read(dsv: Path) -> None:
+        for line in dsv.read_text().splitlines():
+            kind, _, rest = line.partition(";")
+            if kind == "source" and rest.endswith(".dsv"):
+                read((prefix / rest).resolve() if not Path(rest).is_absolute() else Path(rest))
+            elif kind == "prepend-non-duplicate" and rest.startswith("PYTHONPATH;"):
+                path = rest.split(";", 1)[1]
+                entries.insert(0, path if Path(path).is_absolute() else str(prefix / path))
+
+    read(prefix / "share" / "frisicp_ros" / "package.dsv")
+    return os.pathsep.join(entries)
+
+
 class _Recorded:
     """A stand-in for a launch class: records how it was constructed."""
 
     def __init__(self, *args, **kwargs):
         self.args, self.kwargs = args, kwargs
+
+
+class _Node(_Recorded):
+    pass
+
+
+class _LifecycleNode(_Recorded):
+    pass
 
 
 class _LaunchConfiguration(_Recorded):
@@ -120,7 +178,7 @@ def _fake_launch_modules(monkeypatch):
         "launch.actions": {"DeclareLaunchArgument": _Recorded, "OpaqueFunction": _Recorded},
         "launch.substitutions": {"LaunchConfiguration": _LaunchConfiguration},
         "launch_ros": {},
-        "launch_ros.actions": {"Node": _Recorded},
+        "launch_ros.actions": {"Node": _Node, "LifecycleNode": _LifecycleNode},
     }
     for name, members in modules.items():
         module = types.ModuleType(name)
@@ -128,7 +186,7 @@ def _fake_launch_modules(monkeypatch):
         monkeypatch.setitem(sys.modules, name, module)
 
 
-def _launch(monkeypatch, **given: str):
+def _launch(monkeypatch, environ=None, **given: str):
     """Run the launch file as ``ros2 launch`` would: declared defaults, then ``given``; returns
     the declared arguments and the Node's constructor arguments."""
     import runpy
@@ -137,6 +195,8 @@ def _launch(monkeypatch, **given: str):
     monkeypatch.setattr(
         "ament_index_python.packages.get_package_share_directory", lambda package: f"/share/{package}"
     )
+    if environ is not None:
+        monkeypatch.setattr(os, "environ", environ)
     namespace = runpy.run_path(str(ROOT / "launch" / "register.launch.py"))
     description = namespace["generate_launch_description"]()
     actions = description.args[0]
@@ -151,7 +211,7 @@ def _launch(monkeypatch, **given: str):
     def resolved(value):
         return value.perform(context) if isinstance(value, _LaunchConfiguration) else value
 
-    arguments = dict(node.kwargs)
+    arguments = dict(node.kwargs, node_class=type(node).__name__)
     arguments["name"], arguments["namespace"] = (
         resolved(node.kwargs["name"]),
         resolved(node.kwargs["namespace"]),
@@ -169,7 +229,7 @@ def test_launch_arguments_set_namespace_name_log_level_and_qos(monkeypatch):
     assert node["package"] == "frisicp_ros" and node["executable"] == "register_node"
     assert (node["name"], node["namespace"]) == ("frisicp", "")
     assert node["parameters"] == ["/share/frisicp_ros/config/frisicp.yaml"]  # the file's QoS stays
-    assert node["arguments"] == ["--ros-args", "--log-level", "info"]
+    assert node["arguments"] == ["--ros-args", "--log-level", "frisicp:=info"]  # the node's logger only
     assert node["remappings"] == [("model", "model"), ("data", "data")]
     assert declared["model_qos"]["choices"] == ["", *MODEL_QOS_CHOICES]  # the settings table's
     assert declared["data_qos"]["choices"] == ["", *DATA_QOS_CHOICES]
@@ -186,8 +246,48 @@ def test_launch_arguments_set_namespace_name_log_level_and_qos(monkeypatch):
     )
     assert (node["name"], node["namespace"]) == ("align", "robot1")
     assert node["parameters"] == ["/my.yaml", {"model_qos": "transient_local"}]
-    assert node["arguments"] == ["--ros-args", "--log-level", "debug"]
+    assert node["arguments"] == ["--ros-args", "--log-level", "robot1.align:=debug"]
     assert node["remappings"] == [("model", "/map"), ("data", "/points")]
+
+
+def test_launch_lifecycle_argument_starts_the_managed_node(monkeypatch):
+    _, plain = _launch(monkeypatch)
+    assert (plain["node_class"], plain["executable"]) == ("_Node", "register_node")
+    _, managed = _launch(monkeypatch, lifecycle="true", namespace="/robot1/")
+    assert (managed["node_class"], managed["executable"]) == ("_LifecycleNode", "register_lifecycle_node")
+    assert managed["arguments"] == ["--ros-args", "--log-level", "robot1.frisicp:=info"]
+    assert "register_lifecycle_node = frisicp_ros.node.lifecycle:main" in (ROOT / "setup.py").read_text()
+
+
+PROFILE = "/share/frisicp_ros/config/fastdds_large_messages.xml"
+
+
+@pytest.mark.parametrize(
+    ("environ", "choice", "expected"),
+    [
+        ({"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}, "auto", PROFILE),  # all on this machine
+        ({}, "auto", None),  # other machines may publish: shared memory only would cut them off
+        (
+            {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "RMW_IMPLEMENTATION": "rmw_cyclonedds_cpp"},
+            "auto",
+            None,
+        ),
+        (
+            {"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "FASTRTPS_DEFAULT_PROFILES_FILE": "/mine.xml"},
+            "auto",
+            None,
+        ),
+        ({}, "true", PROFILE),
+        ({"FASTRTPS_DEFAULT_PROFILES_FILE": "/mine.xml"}, "true", None),  # the user's own wins
+        ({"ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}, "false", None),
+    ],
+)
+def test_large_messages_profile_is_used_where_it_helps(monkeypatch, environ, choice, expected):
+    declared, node = _launch(monkeypatch, environ=environ, large_messages_profile=choice)
+    assert declared["large_messages_profile"]["default_value"] == "auto"
+    env = node["additional_env"] or {}
+    assert env.get("FASTRTPS_DEFAULT_PROFILES_FILE") == expected
+    assert (ROOT / "config" / "fastdds_large_messages.xml").is_file()
 
 
 def test_launch_file_starts_register_node_with_the_config_and_topic_arguments():

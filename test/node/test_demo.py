@@ -1,6 +1,7 @@
 """The demo's data stream (frisicp-demo): what it shows must be what the core gets right."""
 
 import numpy as np
+import pytest
 
 from frisicp_core import bumpy_surface, register, rotation_angle
 from frisicp_ros.node.demo import truth_at
@@ -17,3 +18,31 @@ def test_noisy_resampled_cold_starts_never_pick_a_flipped_pose():
         data = truth.inverse().apply(sample) + rng.normal(scale=0.005, size=sample.shape)
         estimate = register(data, model).similarity
         assert np.rad2deg(rotation_angle(estimate.rotation.T @ truth.rotation)) < 1.0, f"t = {0.5 * k}"
+
+
+def test_the_demo_keeps_a_domain_the_user_set_and_has_its_own_otherwise():
+    from frisicp_ros.node.demo import DEFAULT_DOMAIN_ID, domain_id
+
+    assert domain_id(None, {"ROS_DOMAIN_ID": "77"}) == 77
+    assert domain_id(None, {}) == domain_id(None, {"ROS_DOMAIN_ID": ""}) == DEFAULT_DOMAIN_ID
+    assert domain_id(5, {"ROS_DOMAIN_ID": "77"}) == 5  # --domain-id says it explicitly
+
+
+def test_the_demo_finds_register_node_beside_itself_as_in_a_colcon_workspace(tmp_path, monkeypatch):
+    """`ros2 run frisicp_ros frisicp-demo` runs <prefix>/lib/frisicp_ros/frisicp-demo, with
+    register_node beside it and neither on PATH nor beside the interpreter."""
+    from frisicp_ros.node import demo
+
+    lib = tmp_path / "install" / "frisicp_ros" / "lib" / "frisicp_ros"
+    lib.mkdir(parents=True)
+    for name in ("frisicp-demo", "register_node"):
+        (lib / name).write_text("#!/bin/sh\n")
+        (lib / name).chmod(0o755)
+    monkeypatch.setattr(demo.sys, "argv", [str(lib / "frisicp-demo")])
+    monkeypatch.setattr(demo.sys, "executable", str(tmp_path / "python3"))
+    monkeypatch.setenv("PATH", str(tmp_path / "empty"))
+    monkeypatch.delenv("AMENT_PREFIX_PATH", raising=False)
+    assert demo.register_node_script() == str(lib / "register_node")
+    (lib / "register_node").unlink()
+    with pytest.raises(SystemExit, match="register_node is not installed"):
+        demo.register_node_script()

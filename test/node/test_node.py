@@ -24,12 +24,12 @@ ros_environment(DOMAIN)
 
 import rclpy  # noqa: E402
 from diagnostic_msgs.msg import DiagnosticArray  # noqa: E402
-from geometry_msgs.msg import TransformStamped  # noqa: E402
+from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped, Vector3Stamped  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import PointCloud2  # noqa: E402
-from std_msgs.msg import Float64, Float64MultiArray  # noqa: E402
+from std_msgs.msg import Float64MultiArray  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from frisicp_core import bumpy_surface  # noqa: E402
@@ -49,12 +49,13 @@ class Probe:
         self.model_pub = self.node.create_publisher(PointCloud2, "model", RELIABLE)
         self.data_pub = self.node.create_publisher(PointCloud2, "data", RELIABLE)
         self.received: dict[str, list] = {
-            name: [] for name in ("transform", "scale", "rms", "similarity", "aligned", "diagnostics")
+            name: [] for name in ("transform", "pose", "scale", "rms", "similarity", "aligned", "diagnostics")
         }
         for name, msg_type in (
             ("transform", TransformStamped),
-            ("scale", Float64),
-            ("rms", Float64),
+            ("pose", PoseWithCovarianceStamped),
+            ("scale", Vector3Stamped),
+            ("rms", Vector3Stamped),
             ("similarity", Float64MultiArray),
             ("aligned", PointCloud2),
         ):
@@ -121,7 +122,7 @@ def test_registers_pair_and_publishes_every_output(ros):
     assert wait_until(
         lambda: probe.received["scale"] and probe.received["similarity"] and probe.received["rms"], 5.0
     )
-    scale = probe.received["scale"][-1].data
+    scale = probe.received["scale"][-1].vector.x
     estimate = transform_similarity(transform, scale)
     assert scale == pytest.approx(TRUTH.scale, rel=1e-3)
     np.testing.assert_allclose(estimate.rotation, TRUTH.rotation, atol=3e-3)
@@ -129,7 +130,37 @@ def test_registers_pair_and_publishes_every_output(ros):
     matrix = probe.received["similarity"][-1]
     assert [(d.label, d.size, d.stride) for d in matrix.layout.dim] == [("rows", 4, 16), ("cols", 4, 4)]
     np.testing.assert_allclose(np.reshape(matrix.data, (4, 4)), estimate.matrix(), atol=1e-9)
-    assert probe.received["rms"][-1].data < 0.01
+    assert probe.received["rms"][-1].vector.x < 0.01
+
+
+def test_pose_scale_and_rms_carry_the_data_stamp_and_the_cores_uncertainty(ros):
+    node, probe = ros
+    probe.clear()
+    model, data = scene_messages(stamp_ns=1_700_000_000_750_000_000)
+    transform = register_pair(probe, model, data)
+    assert wait_until(
+        lambda: probe.received["pose"] and probe.received["scale"] and probe.received["rms"], 5.0
+    )
+    pose, scale, rms = (probe.received[name][-1] for name in ("pose", "scale", "rms"))
+    for message in (pose, scale, rms):
+        assert message.header.stamp == data.header.stamp and message.header.frame_id == "map"
+    outcome = node._status._last_registered  # the registration these messages came from
+    assert outcome.stamp == (data.header.stamp.sec, data.header.stamp.nanosec)
+    result = outcome.result
+    # The covariance is the core's, exactly, in ROS order x y z roll pitch yaw.
+    expected = result.uncertainty.pose_covariance(result.similarity)
+    np.testing.assert_array_equal(np.reshape(pose.pose.covariance, (6, 6)), expected)
+    assert np.all(np.diag(expected) > 0)
+    p, q = pose.pose.pose.position, pose.pose.pose.orientation
+    t, r = transform.transform.translation, transform.transform.rotation
+    assert (p.x, p.y, p.z, q.x, q.y, q.z, q.w) == (t.x, t.y, t.z, r.x, r.y, r.z, r.w)
+    sigma = result.uncertainty.scale
+    assert (scale.vector.x, scale.vector.y, scale.vector.z) == pytest.approx(
+        (result.similarity.scale, result.similarity.scale * sigma, sigma), rel=1e-12
+    )
+    assert (rms.vector.x, rms.vector.y, rms.vector.z) == pytest.approx(
+        (result.rms, result.forward_rms, result.backward_rms), rel=1e-12
+    )
 
 
 def test_aligned_cloud_keeps_intensity_and_lands_on_model(ros):

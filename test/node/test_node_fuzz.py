@@ -27,11 +27,10 @@ from support.ros import NodeAndProbe, cloud_message, ros_environment, transform_
 DOMAIN = 136
 ros_environment(DOMAIN)
 
-from geometry_msgs.msg import TransformStamped  # noqa: E402
+from geometry_msgs.msg import TransformStamped, Vector3Stamped  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import PointCloud2, PointField  # noqa: E402
-from std_msgs.msg import Float64  # noqa: E402
 
 from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface, rotation_angle  # noqa: E402
 
@@ -169,7 +168,7 @@ class Fuzzer(NodeAndProbe):
         self.received = 0
         self.probe.create_subscription(TransformStamped, "/frisicp/transform", self._on_transform, RELIABLE)
         self.probe.create_subscription(
-            Float64, "/frisicp/scale", lambda m: self.scales.append(m.data), RELIABLE
+            Vector3Stamped, "/frisicp/scale", lambda m: self.scales.append(m.vector.x), RELIABLE
         )
         self.start()
         deadline = time.monotonic() + 10

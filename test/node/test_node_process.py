@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import signal
 import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -22,21 +21,21 @@ from support.ros import (
     transform_similarity,
     wait_until,
 )
+from support.scripts import installed_script
 
 DOMAIN = 132
 ENV = ros_environment(DOMAIN)
 
-from geometry_msgs.msg import TransformStamped  # noqa: E402
+from geometry_msgs.msg import TransformStamped, Vector3Stamped  # noqa: E402
 from rcl_interfaces.srv import SetParameters  # noqa: E402
 from rclpy.parameter import Parameter  # noqa: E402
 from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy  # noqa: E402
 from sensor_msgs.msg import PointCloud2  # noqa: E402
-from std_msgs.msg import Float64  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
 ROOT = Path(__file__).resolve().parents[2]
-REGISTER_NODE = Path(sys.executable).parent / "register_node"
+REGISTER_NODE = installed_script("register_node")
 LATCHED = QoSProfile(
     depth=1, reliability=ReliabilityPolicy.RELIABLE, durability=DurabilityPolicy.TRANSIENT_LOCAL
 )
@@ -74,9 +73,9 @@ def probe():
 
 def test_console_script_registers_validates_parameters_and_exits_cleanly_on_sigint(node_process, probe):
     transforms: list[TransformStamped] = []
-    scales: list[Float64] = []
+    scales: list[Vector3Stamped] = []
     probe.create_subscription(TransformStamped, "/frisicp/transform", transforms.append, 10)
-    probe.create_subscription(Float64, "/frisicp/scale", scales.append, 10)
+    probe.create_subscription(Vector3Stamped, "/frisicp/scale", scales.append, 10)
     model_pub = probe.create_publisher(PointCloud2, "/test/map", LATCHED)
     data_pub = probe.create_publisher(PointCloud2, "/test/scan", 10)
     model, data = scene_messages()
@@ -89,7 +88,7 @@ def test_console_script_registers_validates_parameters_and_exits_cleanly_on_sigi
     assert (transform.header.frame_id, transform.child_frame_id) == ("map", "velodyne")
     assert transform.header.stamp == data.header.stamp  # the data's stamp, not now()
     assert wait_until(lambda: bool(scales), 5.0)
-    estimate = transform_similarity(transform, scales[0].data)
+    estimate = transform_similarity(transform, scales[0].vector.x)
     assert estimate.scale == pytest.approx(TRUTH.scale, rel=1e-3)
     np.testing.assert_allclose(estimate.rotation, TRUTH.rotation, atol=3e-3)
     np.testing.assert_allclose(estimate.translation, TRUTH.translation, atol=1e-2)

@@ -9,7 +9,6 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
-import sys
 import threading
 import time
 from pathlib import Path
@@ -17,12 +16,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rclpy
-from geometry_msgs.msg import TransformStamped
+from geometry_msgs.msg import TransformStamped, Vector3Stamped
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSProfile, ReliabilityPolicy
-from std_msgs.msg import Float64
 from support.bags import DATA_FRAME, DATA_TOPIC, MODEL_FRAME, MODEL_TOPIC, standard_scenario, write_rosbag2
 from support.ros import wait_until
+from support.scripts import installed_script
 
 from frisicp_core import Similarity, rotation_angle
 
@@ -32,7 +31,7 @@ pytestmark = pytest.mark.ros
 ROS_SETTINGS = {"ROS_DOMAIN_ID": "207", "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
 ENV = {**{k: v for k, v in os.environ.items() if k != "ROS_STATIC_PEERS"}, **ROS_SETTINGS}
 
-REGISTER_NODE = Path(sys.executable).parent / "register_node"
+REGISTER_NODE = installed_script("register_node")
 TIMEOUT = 40.0
 
 
@@ -51,14 +50,14 @@ class OutputProbe:
 
     def __init__(self) -> None:
         self.transforms: list[TransformStamped] = []
-        self.scales: list[Float64] = []
+        self.scales: list[Vector3Stamped] = []
         self.arrivals: list[float] = []  # time.monotonic() of each transform
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
         self.node = rclpy.create_node("replay_probe", context=self.context)
         reliable = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
         self.node.create_subscription(TransformStamped, "/frisicp/transform", self._on_transform, reliable)
-        self.node.create_subscription(Float64, "/frisicp/scale", self.scales.append, reliable)
+        self.node.create_subscription(Vector3Stamped, "/frisicp/scale", self.scales.append, reliable)
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self.node)
         self._stop = threading.Event()
@@ -128,7 +127,7 @@ def assert_transforms_match(transforms, scales, scenario) -> None:
     for msg, scale, record in zip(transforms, scales, data, strict=False):
         assert (msg.header.frame_id, msg.child_frame_id) == (MODEL_FRAME, DATA_FRAME)
         q, t = msg.transform.rotation, msg.transform.translation
-        estimate = Similarity.from_quaternion(scale.data, [q.x, q.y, q.z, q.w], [t.x, t.y, t.z])
+        estimate = Similarity.from_quaternion(scale.vector.x, [q.x, q.y, q.z, q.w], [t.x, t.y, t.z])
         truth = scenario.truth[record.bag_ns]
         assert estimate.scale == pytest.approx(truth.scale, rel=5e-3)
         assert np.degrees(rotation_angle(estimate.rotation.T @ truth.rotation)) < 0.5

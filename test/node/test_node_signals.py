@@ -11,7 +11,6 @@ from __future__ import annotations
 import os
 import signal
 import subprocess
-import sys
 import time
 
 import pytest
@@ -23,6 +22,7 @@ from support.ros import (
     transform_similarity,
     wait_until,
 )
+from support.scripts import installed_script
 
 DOMAIN = 134
 ENV = ros_environment(DOMAIN)
@@ -33,7 +33,7 @@ from sensor_msgs.msg import PointCloud2  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
-REGISTER_NODE = os.path.join(os.path.dirname(sys.executable), "register_node")
+REGISTER_NODE = installed_script("register_node")
 RELIABLE = QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE)
 TIMEOUT = 30.0
 

@@ -22,6 +22,14 @@ def test_yaml_file_is_the_one_generated_from_the_table():
     assert text == settings.render_yaml(), "config/frisicp.yaml is stale: run `make config`"
 
 
+@pytest.mark.parametrize("document", ["docs/node.md", "README.md"])
+def test_docs_list_every_parameter_with_its_type_from_the_table(document):
+    text = (ROOT / document).read_text()
+    assert settings.with_table(text) == text, f"{document}'s parameter table is stale: run `make config`"
+    for row in settings.options_for(settings.Surface.NODE):
+        assert f"| `{row.name}` | {row.kind.__name__} |" in text
+
+
 def test_yaml_lists_every_parameter_with_its_default():
     loaded = yaml.safe_load((ROOT / "config" / "frisicp.yaml").read_text())["/**"]["ros__parameters"]
     assert loaded == settings.defaults(Surface.NODE)

@@ -204,7 +204,7 @@ def test_outputs_carry_data_stamp_frames_and_the_similarity(flavour):
     q = transform.transform.rotation
     sim = outcome.result.similarity
     rebuilt = Similarity.from_quaternion(
-        messages["scale"].data,
+        messages["scale"].vector.x,
         [q.x, q.y, q.z, q.w],
         [
             transform.transform.translation.x,
@@ -216,7 +216,7 @@ def test_outputs_carry_data_stamp_frames_and_the_similarity(flavour):
     matrix = messages["similarity"]
     assert [(d.label, d.size, d.stride) for d in matrix.layout.dim] == [("rows", 4, 16), ("cols", 4, 4)]
     np.testing.assert_allclose(np.asarray(matrix.data).reshape(4, 4), sim.matrix())
-    assert messages["rms"].data == pytest.approx(outcome.result.rms)
+    assert messages["rms"].vector.x == pytest.approx(outcome.result.rms)
     aligned = messages["aligned"]
     assert aligned.header.frame_id == "map" and [f.name for f in aligned.fields] == [
         "x",
