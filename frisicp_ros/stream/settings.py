@@ -10,7 +10,7 @@ or choices, description and the surfaces it appears on. Generated from it:
   (``frisicp_ros.cli.options``).
 
 Algorithm rows name a field of :class:`~frisicp_core.RegistrationConfig` (``core``; dotted for
-``criteria``) and take their type, default and enum choices from ``RegistrationConfig()``, so
+the fields of ``criteria`` and ``tolerance``) and take their type, default and enum choices from ``RegistrationConfig()``, so
 adding or changing a core option is one row here. ROS parameters have no null: a core ``None``
 is written as the type's zero (0, 0.0 or ""), and the row's ``zero_means`` says what that stands
 for ("off", "automatic"). Values are always in that parameter form (bool, int, float, str);
@@ -68,7 +68,7 @@ class Option:
     choices: tuple[str, ...] | None = None
     bounds: tuple[float, float] | None = None  # inclusive; ints and floats
     read_only: bool = False  # node: set at start-up only (subscriptions are made once)
-    core: str | None = None  # RegistrationConfig field ("criteria.max_iterations" for nested)
+    core: str | None = None  # RegistrationConfig field ("criteria.max_iterations", "tolerance.scale" nested)
     zero_means: str | None = None  # what 0 / 0.0 / "" stands for: the core's None
     flags: tuple[str, ...] = ()  # command-line spellings; default --name-with-dashes
     needs: tuple[str, Value] | None = None  # CLI: only meaningful with that option at that value
@@ -372,6 +372,38 @@ OPTIONS: tuple[Option, ...] = (
     ),
     core_option(
         "acceleration", "Anderson acceleration of the iterations (kept only when it lowers the error)"
+    ),
+    core_option(
+        "tolerance_rotation_deg",
+        "reliable only when 3 sigma of the rotation lie within this many degrees; two poses farther"
+        " apart are distinct answers (an ambiguity when both fit about as well)",
+        core="tolerance.rotation_deg",
+        bounds=(1e-6, 180.0),
+    ),
+    core_option(
+        "tolerance_scale",
+        "reliable only when 3 sigma of the scale lie within this share of it (0.01 = 1 %)",
+        core="tolerance.scale",
+        bounds=(1e-6, 1.0),
+    ),
+    core_option(
+        "tolerance_translation",
+        "reliable only when 3 sigma of the translation (where the data's centroid lands) lie within"
+        " this share of the model's bounding-box diagonal",
+        core="tolerance.translation",
+        bounds=(1e-6, 1.0),
+    ),
+    core_option(
+        "probe",
+        "probe the answer for competing poses (ICP restarted from poses turned, scaled and shifted"
+        " around it): an answer another pose fits about as well is not reliable, a clearly better"
+        " one replaces it; false = faster, ambiguity unchecked",
+    ),
+    core_option(
+        "polish",
+        "finish with point-to-plane Gauss-Newton steps on both directions and estimate the"
+        " covariance (the pose's covariance, the uncertainty of results, the tolerance check);"
+        " false = point-to-point ICP to the end, no covariance",
     ),
     core_option("seed", "seed of the random down-sampling", bounds=(0, 2**31 - 1)),
     core_option("backend", "KD-tree library (auto: pykdtree when installed)", choices=BACKENDS),

@@ -9,6 +9,7 @@ import pytest
 import yaml
 
 from frisicp_core import ConvergenceCriteria, RegistrationConfig
+from frisicp_core.config import Tolerance
 from frisicp_core.kdtree import BACKENDS
 from frisicp_ros.node import parameters
 from frisicp_ros.stream import settings
@@ -63,8 +64,9 @@ def test_descriptors_carry_descriptions_and_ranges():
 
 
 def test_every_core_option_is_an_option_with_the_core_default():
-    core = {f.name for f in fields(RegistrationConfig)} - set(settings.NOT_OPTIONS) - {"criteria"}
-    core |= {f"criteria.{f.name}" for f in fields(ConvergenceCriteria)}
+    nested = {"criteria": ConvergenceCriteria, "tolerance": Tolerance}  # one option per field
+    core = {f.name for f in fields(RegistrationConfig)} - set(settings.NOT_OPTIONS) - set(nested)
+    core |= {f"{owner}.{f.name}" for owner, kind in nested.items() for f in fields(kind)}
     backed = {o.core for o in settings.OPTIONS if o.core}
     assert core == backed, sorted(core ^ backed)
     assert PipelineSettings.create().registration == RegistrationConfig()  # same defaults as the core
@@ -94,3 +96,29 @@ def test_every_option_reaches_the_surfaces_it_names():
             assert (option.name in dests) == bool(surface & option.surfaces), (command, option.name)
     for option in settings.OPTIONS:
         assert (option.name in parameters.NAMES) == bool(Surface.NODE & option.surfaces), option.name
+
+
+def test_the_tolerance_is_three_options_and_probing_and_polishing_can_be_switched_off():
+    config = settings.registration_config(
+        {"tolerance_rotation_deg": 2.5, "tolerance_translation": 0.01, "probe": False, "polish": False}
+    )
+    assert config.tolerance == Tolerance(rotation_deg=2.5, scale=0.01, translation=0.01)
+    assert (config.probe, config.polish) == (False, False)
+    assert settings.algorithm_values(config)["tolerance_rotation_deg"] == 2.5
+    assert PipelineSettings.create(
+        **settings_from({"tolerance_scale": 0.02}).values()
+    ).registration.tolerance == (Tolerance(scale=0.02))
+    with pytest.raises(ValueError, match=r"tolerance_scale must be in \[1e-06, 1\], got 0.0"):
+        settings.registration_config({"tolerance_scale": 0.0})
+
+
+def test_the_tolerance_and_probe_and_polish_on_the_command_line():
+    from frisicp_ros.cli.main import build_parser
+    from frisicp_ros.cli.register import config_from_args
+
+    args = build_parser().parse_args(
+        ["register", "data.ply", "model.ply", "--tolerance-rotation-deg", "3", "--no-probe", "--no-polish"]
+    )
+    config = config_from_args(args)
+    assert config.tolerance == Tolerance(rotation_deg=3.0)
+    assert (config.probe, config.polish) == (False, False)
