@@ -303,11 +303,18 @@ def difference(a: Similarity, b: Similarity, centroid: FloatArray) -> FloatArray
     )
 
 
-def half_samples(sets: Sets, rng: np.random.Generator) -> tuple[Sets, Sets]:
-    """Two disjoint random halves of both clouds, each with its own trees."""
+def half_samples(
+    sets: Sets, rng: np.random.Generator, coincident: tuple[np.ndarray, np.ndarray] | None = None
+) -> tuple[Sets, Sets]:
+    """Two disjoint random halves of both clouds, each with its own trees. ``coincident`` =
+    (data rows, model rows) of points that coincide under the estimate (the two clouds share
+    those samples, as a copy does): such a pair goes to the same half, since independent halves
+    of a shared sampling would be two different samplings, which the clouds are not."""
     data, model = sets.data_tree.points, sets.model_tree.points
     data_half = np.less(rng.random(data.shape[0]), 0.5)
     model_half = np.less(rng.random(model.shape[0]), 0.5)
+    if coincident is not None:
+        model_half[coincident[1]] = data_half[coincident[0]]
     halves = []
     for data_mask, model_mask in ((data_half, model_half), (~data_half, ~model_half)):
         # Half the points of a surface lie sqrt(2) times as far apart.
@@ -323,6 +330,23 @@ def half_samples(sets: Sets, rng: np.random.Generator) -> tuple[Sets, Sets]:
     return halves[0], halves[1]
 
 
+def coincident_points(sim: Similarity, sets: Sets) -> tuple[np.ndarray, np.ndarray] | None:
+    """The (data rows, model rows) of data points that land on a model point (within a
+    hundredth of the model's spacing), or None when fewer than a tenth do: independent
+    samplings of a surface share no points, a copy shares all of them."""
+    data = sets.data_tree.points
+    rows = np.arange(0, data.shape[0], max(1, data.shape[0] // 256))
+    dist_sq, _ = sets.model_tree.query(sim.apply(data[rows]))
+    limit = (_COINCIDENT * sets.model_spacing) ** 2
+    if np.count_nonzero(dist_sq <= limit) < 0.1 * rows.size:
+        return None
+    dist_sq, index = sets.model_tree.query(sim.apply(data))
+    close = dist_sq <= limit
+    return np.flatnonzero(close), index[close]
+
+
+# Points closer than this share of the model's spacing are one sample (see coincident_points).
+_COINCIDENT = 0.01
 # Random splits into halves that size the covariance, and the factor the result is widened by
 # (see uncertainty_of).
 SPLITS = 3
@@ -365,8 +389,9 @@ def uncertainty_of(
     r = vector_size(dim)
     blocks = [slice(0, 1), slice(1, 1 + r), slice(1 + r, 1 + r + dim)]
     spreads = np.zeros(len(blocks))
+    coincident = coincident_points(sim, sets)
     for _ in range(SPLITS):
-        first, second = half_samples(sets, rng)
+        first, second = half_samples(sets, rng, coincident)
         delta = difference(
             polish(sim, first, centroid, steps=1, final_pass=False).similarity,
             polish(sim, second, centroid, steps=1, final_pass=False).similarity,

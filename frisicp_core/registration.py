@@ -67,7 +67,11 @@ _PROBE_REFINED = 3
 
 
 def register(
-    data: ArrayLike, model: ArrayLike, config: RegistrationConfig | None = None
+    data: ArrayLike,
+    model: ArrayLike,
+    config: RegistrationConfig | None = None,
+    *,
+    previous: RegistrationResult | None = None,
 ) -> RegistrationResult:
     """Find the similarity T with model ≈ T(data) = s R data + t.
 
@@ -75,17 +79,71 @@ def register(
     correspondences are needed, and they may overlap only partly, in either direction.
     ``config`` defaults to ``RegistrationConfig()``; ``RegistrationConfig.paper()`` runs the
     published algorithm exactly. Raises ``ValueError`` on unusable input (see
-    :func:`as_point_set`). The result carries a plausibility verdict (``reliable``, ``reason``).
+    :func:`as_point_set`). The result carries a verdict (``reliable``, ``reason``) and its
+    uncertainty.
 
-    A warm start (``config.initial``) whose result fails the plausibility verdict is retried
-    cold: a poisoned start must not turn later good pairs into wrong answers.
+    Tracking: a warm start (``config.initial``, usually the last result's similarity) is
+    retried cold when its result is not reliable, or, given the track's last result
+    (``previous``), when it is clearly worse than the track (:func:`worse_than_track`: the pose
+    jumped, relocalised, the map changed, and the warm start fell into a wrong minimum); of the
+    two, the better one wins (:func:`better_of`). A poisoned start must not turn later good
+    pairs into wrong answers.
     """
     config = config or RegistrationConfig()
     result = _register(data, model, config)
-    if config.initial is not None and not result.reliable:
-        cold = _register(data, model, replace(config, initial=None))
-        return replace(cold, seconds=result.seconds + cold.seconds)
-    return result
+    if config.initial is None:
+        return result
+    why = "" if result.reliable else result.reason
+    if not why and previous is not None:
+        why = worse_than_track(result, previous)
+    if not why:
+        return result
+    cold = _register(data, model, replace(config, initial=None))
+    best = better_of(result, cold)
+    return replace(best, seconds=result.seconds + cold.seconds, retried=f"warm start retried cold: {why}")
+
+
+# A warm result is worse than the track when its smaller overlap fell below this share of the
+# track's, its RMS grew more than this factor, or its near-miss share rose by more than this.
+_TRACK_OVERLAP = 0.8
+_TRACK_RMS = 1.5
+_TRACK_NEAR = 0.1
+
+
+def worse_than_track(result: RegistrationResult, previous: RegistrationResult) -> str:
+    """Why a warm-started ``result`` looks worse than the track's ``previous`` result, or ''.
+
+    A tracked sensor sees much the same scene from one pair to the next: the overlap, the fit
+    and the near misses change a little. A warm start left behind by a jump settles in some
+    wrong minimum instead, where less of the clouds overlaps, the pairs fit worse and surfaces
+    that meet miss each other.
+    """
+    if not previous.reliable:
+        return ""
+    problems = []
+    now, before = _smaller_overlap(result), _smaller_overlap(previous)
+    if now < _TRACK_OVERLAP * before:
+        problems.append(f"overlap {now:.0%} where the track had {before:.0%}")
+    if result.rms > _TRACK_RMS * previous.rms:
+        problems.append(f"RMS {result.rms:.3g} where the track had {previous.rms:.3g}")
+    if result.fit is not None and previous.fit is not None:
+        near, was = result.fit.best_near_share, previous.fit.best_near_share
+        if near > was + _TRACK_NEAR:
+            problems.append(f"{near:.0%} near misses where the track had {was:.0%}")
+    return "; ".join(problems)
+
+
+def better_of(warm: RegistrationResult, cold: RegistrationResult) -> RegistrationResult:
+    """The reliable one of two results for the same pair, else the one whose pairs fit better
+    for their share (trimmed ICP's criterion: RMS^2 / fitness^3)."""
+    if warm.reliable != cold.reliable:
+        return warm if warm.reliable else cold
+    return min((warm, cold), key=lambda result: result.rms**2 / max(result.fitness, 1e-12) ** 3)
+
+
+def _smaller_overlap(result: RegistrationResult) -> float:
+    values = [v for v in (result.overlap_forward, result.overlap_backward) if np.isfinite(v)]
+    return min(values) if values else 0.0
 
 
 def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> RegistrationResult:
@@ -249,6 +307,7 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
         warm_started=config.initial is not None,
         uncertainty=uncertainty,
         competitor=competitor,
+        fit=fit,
     )
 
 
