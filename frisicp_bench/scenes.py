@@ -147,7 +147,9 @@ def sparse_map_case(
     )
 
 
-def frames_case(scene: FloatArray, name: str, share: float, step: float, rng: np.random.Generator) -> SceneCase:
+def frames_case(
+    scene: FloatArray, name: str, share: float, step: float, rng: np.random.Generator
+) -> SceneCase:
     """Two overlapping views, as consecutive frames: boxes of ``share`` of the scene whose
     centres are ``step`` of the box's width apart, each re-sampled from its own half of the
     scene's points (two frames never measure the same surface points) with its own noise, moved
