@@ -151,15 +151,17 @@ def frames_case(
     scene: FloatArray, name: str, share: float, step: float, rng: np.random.Generator
 ) -> SceneCase:
     """Two overlapping views, as consecutive frames: boxes of ``share`` of the scene whose
-    centres are ``step`` of the box's width apart, each re-sampled with its own noise, moved by
-    a small motion (up to 5 degrees, 1-5 % scale drift)."""
+    centres are ``step`` of the box's width apart, each re-sampled from its own half of the
+    scene's points (two frames never measure the same surface points) with its own noise, moved
+    by a small motion (up to 5 degrees, 1-5 % scale drift)."""
     noise = NOISE * model_size(scene)
     first = scene[rng.integers(scene.shape[0])]
-    view = box_crop(scene, share, rng, first)
+    halves = rng.random(scene.shape[0]) < 0.5
+    view = box_crop(scene[halves], share, rng, first)
     width = float(np.ptp(view, axis=0).max())
     direction = rng.normal(size=3)
     second = first + step * width * direction / np.linalg.norm(direction)
-    other = box_crop(scene, share, rng, second)
+    other = box_crop(scene[~halves], share, rng, second)
     data = resampled(view, rng.uniform(0.5, 1.0), noise, rng)
     model = resampled(other, rng.uniform(0.5, 1.0), noise, rng)
     scale = float(np.exp(rng.choice((-1.0, 1.0)) * rng.uniform(0.01, 0.05)))

@@ -3,19 +3,25 @@
 No ROS imports here; the ROS layer lives in ``frisicp_ros``.
 """
 
-from .config import ConvergenceCriteria, Initialization, Method, RegistrationConfig
+from .ambiguity import Competitor
+from .config import ConvergenceCriteria, InitialGuess, Initialization, Method, RegistrationConfig, Tolerance
 from .estimate import estimate_similarity
+from .fit import Fit
 from .kdtree import NearestNeighbors, nearest
 from .points import as_point_set
-from .registration import register
+from .registration import better_of, register, worse_than_track
 from .result import IterationRecord, LevelReport, RegistrationResult
 from .sampling import downsample
 from .shapes import bumpy_surface, closed_contour
 from .similarity import Similarity, axis_angle_rotation, rotation_angle
+from .uncertainty import Uncertainty
 from .verdict import Verdict, judge
 
 __all__ = [
+    "Competitor",
     "ConvergenceCriteria",
+    "Fit",
+    "InitialGuess",
     "Initialization",
     "IterationRecord",
     "LevelReport",
@@ -24,9 +30,12 @@ __all__ = [
     "RegistrationConfig",
     "RegistrationResult",
     "Similarity",
+    "Tolerance",
+    "Uncertainty",
     "Verdict",
     "as_point_set",
     "axis_angle_rotation",
+    "better_of",
     "bumpy_surface",
     "closed_contour",
     "downsample",
@@ -35,5 +44,6 @@ __all__ = [
     "nearest",
     "register",
     "rotation_angle",
+    "worse_than_track",
 ]
 __version__ = "0.1.0"

@@ -78,6 +78,8 @@ def describe(points: FloatArray, radius: float, max_keypoints: int | None = None
     enough = inside.sum(axis=1) >= _MIN_SUPPORT
     keys, key_normals = keys[enough], key_normals[enough]
     dist_sq, neighbours, inside = dist_sq[enough], neighbours[enough], inside[enough]
+    if keys.shape[0] == 0:  # nothing with enough support at this radius
+        return Descriptors(radius, keys, key_normals, np.zeros((0, 3 * _ANGLE_BINS + _JOINT_BINS**2)))
     histograms = _pair_histograms(keys, key_normals, support, normals, neighbours, dist_sq, inside, radius)
     values = _smoothed(keys, histograms, radius)
     return Descriptors(radius, keys, key_normals, np.sqrt(values))

@@ -44,14 +44,15 @@ class ModelNormals:
     """Unit normals of the model's points (Hoppe et al. 1992: the least-variance direction of
     the :data:`NORMAL_NEIGHBOURS` nearest points), computed when first asked for and kept."""
 
-    def __init__(self, tree: NearestNeighbors) -> None:
+    def __init__(self, tree: NearestNeighbors, neighbours: int = NORMAL_NEIGHBOURS) -> None:
         self.tree = tree
+        self.neighbours = neighbours
         self._normals = np.full(tree.points.shape, np.nan)
 
     def __getitem__(self, index: np.ndarray) -> FloatArray:
         missing = np.unique(index[np.isnan(self._normals[index, 0])])
         if missing.size:
-            _, neighbours = self.tree.query_k(self.tree.points[missing], NORMAL_NEIGHBOURS)
+            _, neighbours = self.tree.query_k(self.tree.points[missing], self.neighbours)
             patches = self.tree.points[neighbours]
             centred = patches - patches.mean(axis=1, keepdims=True)
             _, vectors = np.linalg.eigh(np.einsum("nki,nkj->nij", centred, centred))
@@ -62,16 +63,25 @@ class ModelNormals:
 
 @dataclass(frozen=True)
 class Half:
-    """A random half of a cloud: its rows in the whole cloud, a mask of them, its own tree."""
+    """A random half of a cloud: its rows in the whole cloud, a mask of them, its own tree and
+    its own normals (fitted to the half's points: the normals' noise is part of what makes two
+    halves disagree)."""
 
     rows: np.ndarray
     mask: np.ndarray
     tree: NearestNeighbors
+    normals: ModelNormals
 
     @classmethod
     def of(cls, points: FloatArray, mask: np.ndarray) -> Half:
         rows = np.flatnonzero(mask)
-        return cls(rows, mask, NearestNeighbors(points[rows]))
+        tree = NearestNeighbors(points[rows])
+        # Half as many neighbours among half the points: the same patch of surface.
+        return cls(rows, mask, tree, ModelNormals(tree, NORMAL_NEIGHBOURS // 2))
+
+    def normals_at(self, rows: np.ndarray) -> FloatArray:
+        """The half's normals at whole-cloud rows that belong to it."""
+        return self.normals[np.searchsorted(self.rows, rows)]
 
     def nearest(self, queries: FloatArray) -> tuple[FloatArray, np.ndarray]:
         """Nearest point of the half: squared distances, rows in the whole cloud."""
@@ -143,24 +153,23 @@ def _sample(count: int, half: Half | None) -> np.ndarray:
 
 
 def plane_pairs(sim: Similarity, sets: Sets, bidirectional: bool = True) -> PlanePairs:
-    """The kept pairs of ``sim`` in both directions (sampled, see the module doc). A forward
-    pair takes the model's normal at the whole model's nearest point (a half-sample's own
-    nearest point lies on the same surface, a spacing away)."""
+    """The kept pairs of ``sim`` in both directions (sampled, see the module doc)."""
     data, model = sets.data_tree.points, sets.model_tree.points
     rows = _sample(data.shape[0], sets.data_half)
     mapped = sim.apply(data[rows])
-    forward_sq, forward_index = sets.model_tree.query(mapped)
-    surface = forward_index
-    if sets.model_half is not None:
-        forward_sq, forward_index = sets.model_half.nearest(mapped)
+    model_half = sets.model_half
+    if model_half is None:
+        forward_sq, forward_index = sets.model_tree.query(mapped)
+    else:
+        forward_sq, forward_index = model_half.nearest(mapped)
     keep = select_pairs(
         forward_sq[None], np.array([sets.model_spacing**2]), sets.overlap, sets.max_distance
     ).keep[0]
-    sources, targets, normals = [mapped[keep]], [model[forward_index[keep]]], [sets.normals[surface[keep]]]
+    sources, targets = [mapped[keep]], [forward_index[keep]]
     forward_kept = forward_sq[keep]
     backward_kept, columns = np.zeros(0), np.zeros(0, dtype=np.int64)
     if bidirectional:
-        columns = _sample(model.shape[0], sets.model_half)
+        columns = _sample(model.shape[0], model_half)
         queries = sim.inverse().apply(model[columns])
         if sets.data_half is None:
             backward_sq, backward_index = sets.data_tree.query(queries)
@@ -174,13 +183,14 @@ def plane_pairs(sim: Similarity, sets: Sets, bidirectional: bool = True) -> Plan
             sets.max_distance,
         ).keep[0]
         sources.append(sim.apply(data[backward_index[keep_back]]))
-        targets.append(model[columns[keep_back]])
-        normals.append(sets.normals[columns[keep_back]])
+        targets.append(columns[keep_back])
         backward_kept = backward_sq[keep_back]
+    index = np.concatenate(targets)
+    normals = sets.normals[index] if model_half is None else model_half.normals_at(index)
     return PlanePairs(
         np.concatenate(sources),
-        np.concatenate(targets),
-        np.concatenate(normals),
+        model[index],
+        normals,
         forward_kept,
         backward_kept,
         int(mapped.shape[0]),
@@ -303,11 +313,18 @@ def difference(a: Similarity, b: Similarity, centroid: FloatArray) -> FloatArray
     )
 
 
-def half_samples(sets: Sets, rng: np.random.Generator) -> tuple[Sets, Sets]:
-    """Two disjoint random halves of both clouds, each with its own trees."""
+def half_samples(
+    sets: Sets, rng: np.random.Generator, coincident: tuple[np.ndarray, np.ndarray] | None = None
+) -> tuple[Sets, Sets]:
+    """Two disjoint random halves of both clouds, each with its own trees. ``coincident`` =
+    (data rows, model rows) of points that coincide under the estimate (the two clouds share
+    those samples, as a copy does): such a pair goes to the same half, since independent halves
+    of a shared sampling would be two different samplings, which the clouds are not."""
     data, model = sets.data_tree.points, sets.model_tree.points
     data_half = np.less(rng.random(data.shape[0]), 0.5)
     model_half = np.less(rng.random(model.shape[0]), 0.5)
+    if coincident is not None:
+        model_half[coincident[1]] = data_half[coincident[0]]
     halves = []
     for data_mask, model_mask in ((data_half, model_half), (~data_half, ~model_half)):
         # Half the points of a surface lie sqrt(2) times as far apart.
@@ -323,6 +340,23 @@ def half_samples(sets: Sets, rng: np.random.Generator) -> tuple[Sets, Sets]:
     return halves[0], halves[1]
 
 
+def coincident_points(sim: Similarity, sets: Sets) -> tuple[np.ndarray, np.ndarray] | None:
+    """The (data rows, model rows) of data points that land on a model point (within a
+    hundredth of the model's spacing), or None when fewer than a tenth do: independent
+    samplings of a surface share no points, a copy shares all of them."""
+    data = sets.data_tree.points
+    rows = np.arange(0, data.shape[0], max(1, data.shape[0] // 256))
+    dist_sq, _ = sets.model_tree.query(sim.apply(data[rows]))
+    limit = (_COINCIDENT * sets.model_spacing) ** 2
+    if np.count_nonzero(dist_sq <= limit) < 0.1 * rows.size:
+        return None
+    dist_sq, index = sets.model_tree.query(sim.apply(data))
+    close = dist_sq <= limit
+    return np.flatnonzero(close), index[close]
+
+
+# Points closer than this share of the model's spacing are one sample (see coincident_points).
+_COINCIDENT = 0.01
 # Random splits into halves that size the covariance, and the factor the result is widened by
 # (see uncertainty_of).
 SPLITS = 3
@@ -335,6 +369,7 @@ def uncertainty_of(
     sets: Sets,
     centroid: FloatArray,
     rng: np.random.Generator,
+    widening: FloatArray | None = None,
 ) -> Uncertainty:
     """The covariance of the refined ``sim``: the sandwich estimate's shape
     (:func:`frisicp_core.uncertainty.estimate_uncertainty`), its size checked against the
@@ -358,15 +393,22 @@ def uncertainty_of(
     errors' 95th percentiles were 3.4-6.0 of these sigmas in the three components, where a
     calibrated Gaussian gives 2.5-2.8 (worst axis against the norm of the error);
     :data:`WIDENING` = 2.25 brings every component's share within three sigmas to 0.98 there.
+
+    The splits cost six refinements of half the pairs. A tracked sensor sees the same scene with
+    the same noise from one pair to the next, so a ``widening`` measured on the track (the
+    previous result's, per parameter) is applied to this pair's sandwich instead.
     """
     centre = sim.apply(centroid)
     sandwich = estimate_uncertainty(pairs.mapped, pairs.targets, pairs.normals, centre, rng)
+    if widening is not None:
+        return _widened(sandwich.covariance, widening, centre)
     dim = sim.dim
     r = vector_size(dim)
     blocks = [slice(0, 1), slice(1, 1 + r), slice(1 + r, 1 + r + dim)]
     spreads = np.zeros(len(blocks))
+    coincident = coincident_points(sim, sets)
     for _ in range(SPLITS):
-        first, second = half_samples(sets, rng)
+        first, second = half_samples(sets, rng, coincident)
         delta = difference(
             polish(sim, first, centroid, steps=1, final_pass=False).similarity,
             polish(sim, second, centroid, steps=1, final_pass=False).similarity,
@@ -379,6 +421,10 @@ def uncertainty_of(
         trace = float(np.trace(covariance[block, block]))
         kappa = spread / trace if trace > 0 else (np.inf if spread > 0 else 1.0)
         factors[block] = WIDENING * np.sqrt(max(1.0, kappa))
+    return _widened(covariance, factors, centre)
+
+
+def _widened(covariance: FloatArray, factors: FloatArray, centre: FloatArray) -> Uncertainty:
     with np.errstate(invalid="ignore"):
         scaled = factors[:, None] * covariance * factors[None, :]
-    return Uncertainty(np.where(np.isnan(scaled), np.inf, scaled), centre)
+    return Uncertainty(np.where(np.isnan(scaled), np.inf, scaled), centre, factors)

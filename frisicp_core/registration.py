@@ -42,8 +42,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .ambiguity import AMBIGUITY_MARGIN, Competitor, probe_starts, separation
-from .config import Method, RegistrationConfig
+from .config import Initialization, Method, RegistrationConfig
 from .fit import Fit, measure_fit
+from .global_search import feature_starts
 from .hypotheses import beyond_guess, covariance_scale_bounds, initial_hypotheses
 from .levels import Pairs, Pyramid, level_motion
 from .points import as_point_set, centroid, check_same_dimension, rms_radius
@@ -67,7 +68,11 @@ _PROBE_REFINED = 3
 
 
 def register(
-    data: ArrayLike, model: ArrayLike, config: RegistrationConfig | None = None
+    data: ArrayLike,
+    model: ArrayLike,
+    config: RegistrationConfig | None = None,
+    *,
+    previous: RegistrationResult | None = None,
 ) -> RegistrationResult:
     """Find the similarity T with model ≈ T(data) = s R data + t.
 
@@ -75,20 +80,76 @@ def register(
     correspondences are needed, and they may overlap only partly, in either direction.
     ``config`` defaults to ``RegistrationConfig()``; ``RegistrationConfig.paper()`` runs the
     published algorithm exactly. Raises ``ValueError`` on unusable input (see
-    :func:`as_point_set`). The result carries a plausibility verdict (``reliable``, ``reason``).
+    :func:`as_point_set`). The result carries a verdict (``reliable``, ``reason``) and its
+    uncertainty.
 
-    A warm start (``config.initial``) whose result fails the plausibility verdict is retried
-    cold: a poisoned start must not turn later good pairs into wrong answers.
+    Tracking: a warm start (``config.initial``, usually the last result's similarity) is
+    retried cold when its result is not reliable, or, given the track's last result
+    (``previous``), when it is clearly worse than the track (:func:`worse_than_track`: the pose
+    jumped, relocalised, the map changed, and the warm start fell into a wrong minimum); of the
+    two, the better one wins (:func:`better_of`). A poisoned start must not turn later good
+    pairs into wrong answers.
     """
     config = config or RegistrationConfig()
-    result = _register(data, model, config)
-    if config.initial is not None and not result.reliable:
-        cold = _register(data, model, replace(config, initial=None))
-        return replace(cold, seconds=result.seconds + cold.seconds)
-    return result
+    result = _register(data, model, config, previous if config.initial is not None else None)
+    if config.initial is None:
+        return result
+    why = "" if result.reliable else result.reason
+    if not why and previous is not None:
+        why = worse_than_track(result, previous)
+    if not why:
+        return result
+    cold = _register(data, model, replace(config, initial=None))
+    best = better_of(result, cold)
+    return replace(best, seconds=result.seconds + cold.seconds, retried=f"warm start retried cold: {why}")
 
 
-def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> RegistrationResult:
+# A warm result is worse than the track when its smaller overlap fell below this share of the
+# track's, its RMS grew more than this factor, or its near-miss share rose by more than this.
+_TRACK_OVERLAP = 0.8
+_TRACK_RMS = 1.5
+_TRACK_NEAR = 0.1
+
+
+def worse_than_track(result: RegistrationResult, previous: RegistrationResult) -> str:
+    """Why a warm-started ``result`` looks worse than the track's ``previous`` result, or ''.
+
+    A tracked sensor sees much the same scene from one pair to the next: the overlap, the fit
+    and the near misses change a little. A warm start left behind by a jump settles in some
+    wrong minimum instead, where less of the clouds overlaps, the pairs fit worse and surfaces
+    that meet miss each other.
+    """
+    if not previous.reliable:
+        return ""
+    problems = []
+    now, before = _smaller_overlap(result), _smaller_overlap(previous)
+    if now < _TRACK_OVERLAP * before:
+        problems.append(f"overlap {now:.0%} where the track had {before:.0%}")
+    if result.rms > _TRACK_RMS * previous.rms:
+        problems.append(f"RMS {result.rms:.3g} where the track had {previous.rms:.3g}")
+    if result.fit is not None and previous.fit is not None:
+        near, was = result.fit.best_near_share, previous.fit.best_near_share
+        if near > was + _TRACK_NEAR:
+            problems.append(f"{near:.0%} near misses where the track had {was:.0%}")
+    return "; ".join(problems)
+
+
+def better_of(warm: RegistrationResult, cold: RegistrationResult) -> RegistrationResult:
+    """The reliable one of two results for the same pair, else the one whose pairs fit better
+    for their share (trimmed ICP's criterion: RMS^2 / fitness^3)."""
+    if warm.reliable != cold.reliable:
+        return warm if warm.reliable else cold
+    return min((warm, cold), key=lambda result: result.rms**2 / max(result.fitness, 1e-12) ** 3)
+
+
+def _smaller_overlap(result: RegistrationResult) -> float:
+    values = [v for v in (result.overlap_forward, result.overlap_backward) if np.isfinite(v)]
+    return min(values) if values else 0.0
+
+
+def _register(
+    data: ArrayLike, model: ArrayLike, config: RegistrationConfig, track: RegistrationResult | None = None
+) -> RegistrationResult:
     start = time.perf_counter()
     data_set = as_point_set(data, "data", drop_nonfinite=config.drop_nonfinite)
     model_set = as_point_set(model, "model", drop_nonfinite=config.drop_nonfinite)
@@ -117,6 +178,12 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
     if sum(len(family) for family in families) > 1:
         finalists = solver.screen(levels.screening_level(), families)
     reports: list[LevelReport] = []
+    searching = (
+        config.initial is None
+        and config.guess is None
+        and config.initialization is Initialization.SEARCH
+        and config.method is Method.FRISICP
+    )
     sim, first, accelerate_from = finalists[0], 0, ACCELERATE_FROM
     runners_up: list[Similarity] = []
     if config.initial is not None and config.dense_targets and last > 0:
@@ -128,11 +195,24 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
             0, levels[0], sim, relative_motion=level_motion(config, 0, last)
         )
         reports, first, accelerate_from = [report], 1, ACCELERATE_FROM_TRACKING
-    elif len(finalists) > 1:
+    elif len(finalists) > 1 or (searching and last > 0):
         (sim, report, pairs), runners_up = compare_finalists(
             solver, levels[0], finalists, level_motion(config, 0, last)
         )
         reports, first = [report], 1
+        if searching and pairs.backward is not None and data_set.shape[1] == 3 and not _covering(pairs):
+            # The clouds do not cover each other: the data may lie anywhere in the model (or the
+            # model in the data), at a scale and turn the moments do not tell. Poses from
+            # matched local shape (frisicp_core.global_search) join the answer so far.
+            # Each runs to its minimum on the first dense level: a start a few degrees off
+            # the truth is still far above a settled wrong answer after a pass or two, so the
+            # screening's early pruning would drop it.
+            starts = feature_starts(data_set, model_set, rng)
+            if starts:
+                (sim, report, pairs), runners_up = compare_finalists(
+                    solver, levels[0], [sim, *runners_up, *starts], level_motion(config, 0, last)
+                )
+                reports = [report]
     # The full sets are solved by point-to-plane steps (frisicp_core.refine) when polishing; ICP
     # runs the levels above them (all of them when the sets are small enough for one level).
     polishing = bidirectional and config.polish
@@ -147,18 +227,13 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
         )
         reports.append(report)
 
-    competitor: Competitor | None = None
+    competitors: list[Competitor] = []
     if bidirectional and config.initial is None and config.probe:
         refine = _Refiner(solver, levels, config, icp_last)
-        # Clouds that cover each other are probed only against the screening's runners-up: a
-        # distinct pose fitting as well needs a symmetry, which the principal-axes hypotheses
-        # meet, or a continuous one, which the covariance shows.
-        assert pairs.backward is not None
-        complete = min(pairs.forward.fraction[0], pairs.backward.fraction[0]) >= _COMPLETE
-        competitor, better = _probe(refine, sim, pairs, data_set, model_set, config, runners_up, complete)
+        competitors, better = _probe(refine, sim, pairs, data_set, model_set, config, runners_up)
         if better is not None:
             sim, pairs = better
-            competitor, _ = _probe(refine, sim, pairs, data_set, model_set, config, [], complete)
+            competitors, _ = _probe(refine, sim, pairs, data_set, model_set, config, [])
     rms, forward_rms, backward_rms = pairs.rms()
     overlap_forward = float(pairs.forward.fraction[0])
     overlap_backward = float(pairs.backward.fraction[0]) if pairs.backward is not None else float("nan")
@@ -206,7 +281,19 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
             icp = reports.pop()
             report = replace(report, iterations=icp.iterations + report.iterations)
         reports.append(report)
-        uncertainty = uncertainty_of(sim, plane, sets, data_centroid, rng)
+        widening = track.uncertainty.widening if track is not None and track.uncertainty is not None else None
+        uncertainty = uncertainty_of(sim, plane, sets, data_centroid, rng, widening)
+        # A competitor found by ICP is judged against the polished answer, polished itself: two
+        # ICP runs stopped at their noise floor may lie a tolerance apart in one basin.
+        diagonal = float(np.linalg.norm(model_set.max(axis=0) - model_set.min(axis=0)))
+        competitors = [
+            replace(other, similarity=finished, separation=apart)
+            for other in competitors
+            for finished in [polish(other.similarity, sets, data_centroid).similarity]
+            for apart in [separation(finished, sim, data_centroid, diagonal, config.tolerance)]
+            if apart > 1.0
+        ]
+    competitor = competitors[0] if competitors else None
     fit: Fit | None = None
     if bidirectional:
         assert final.data_tree is not None
@@ -249,6 +336,7 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
         warm_started=config.initial is not None,
         uncertainty=uncertainty,
         competitor=competitor,
+        fit=fit,
     )
 
 
@@ -279,6 +367,13 @@ class _Refiner:
         return sim, pairs
 
 
+def _covering(pairs: Pairs) -> bool:
+    """True when each cloud's estimated overlap with the other is at least :data:`_COMPLETE`."""
+    if pairs.backward is None:
+        return bool(pairs.forward.fraction[0] >= _COMPLETE)
+    return bool(min(pairs.forward.fraction[0], pairs.backward.fraction[0]) >= _COMPLETE)
+
+
 def _probe(
     refine: _Refiner,
     sim: Similarity,
@@ -287,36 +382,34 @@ def _probe(
     model: FloatArray,
     config: RegistrationConfig,
     runners_up: list[Similarity],
-    complete: bool,
-) -> tuple[Competitor | None, tuple[Similarity, Pairs] | None]:
+) -> tuple[list[Competitor], tuple[Similarity, Pairs] | None]:
     """Probe the answer ``sim`` (final merit ``merit``; :mod:`frisicp_core.ambiguity`): starts
     around it settle on the screening level; those that end distinct from the answer settled
     there and within :data:`_NOMINATE` of its merit there are run down the levels like the
-    answer and compared with it on the finest level ICP ran. Returns the closest competitor
-    within the margin, if any, and a distinct pose that fits clearly better (with its final
-    pairs), if any. The screening's ``runners_up`` are always run down; the probes only when the
-    clouds are not ``complete``."""
+    answer and compared with it on the finest level ICP ran. Returns the competitors within the
+    margin (best first), and a distinct pose that fits clearly better (with its final
+    pairs), if any. The screening's ``runners_up`` are run down too. (Clouds that cover each other
+    are probed as well: two views of a dome-shaped depth frame overlap all but completely, and
+    still turn a few degrees either way about the sensor at the same merit.)"""
     merit = float(pairs.merit[0])
     centre = centroid(data)
     diagonal = float(np.linalg.norm(model.max(axis=0) - model.min(axis=0)))
-    nominated = list(runners_up)
-    if not complete:
-        starts = [sim, *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data))]
-        poses, merits = refine.settle_rough(starts)
-        settled = poses[0]
-        ranked = sorted(
-            (float(merits[k]) / float(merits[0]), k)
-            for k in range(1, len(starts))
-            if np.isfinite(merits[k])
-            and float(merits[k]) <= (1.0 + _NOMINATE) * float(merits[0])
-            and separation(poses[k], settled, centre, diagonal, config.tolerance) > 1.0
-        )
-        nominated += [poses[k] for _, k in ranked]
-    competitor: Competitor | None = None
+    starts = [sim, *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data))]
+    poses, merits = refine.settle_rough(starts)
+    settled = poses[0]
+    ranked = sorted(
+        (float(merits[k]) / float(merits[0]), k)
+        for k in range(1, len(starts))
+        if np.isfinite(merits[k])
+        and float(merits[k]) <= (1.0 + _NOMINATE) * float(merits[0])
+        and separation(poses[k], settled, centre, diagonal, config.tolerance) > 1.0
+    )
+    nominated = [*runners_up, *(poses[k] for _, k in ranked)]
+    found: list[Competitor] = []
     kept: list[Similarity] = []
     for start in nominated:
-        if any(separation(start, other, centre, diagonal, config.tolerance) <= 1.0 for other in kept):
-            continue  # the same basin as a candidate already run down
+        if any(separation(start, other, centre, diagonal, config.tolerance) <= 1.0 for other in [sim, *kept]):
+            continue  # the answer's basin, or one already run down
         kept.append(start)
         refined, pairs = refine.down(start)
         apart = separation(refined, sim, centre, diagonal, config.tolerance)
@@ -324,9 +417,9 @@ def _probe(
         if apart <= 1.0 or not np.isfinite(ratio):
             continue
         if ratio < 1.0 - AMBIGUITY_MARGIN:
-            return None, (refined, pairs)
-        if ratio <= 1.0 + AMBIGUITY_MARGIN and (competitor is None or ratio < competitor.merit_ratio):
-            competitor = Competitor(refined, ratio, apart)
+            return [], (refined, pairs)
+        if ratio <= 1.0 + AMBIGUITY_MARGIN:
+            found.append(Competitor(refined, ratio, apart))
         if len(kept) == _PROBE_REFINED:
             break
-    return competitor, None
+    return sorted(found, key=lambda other: other.merit_ratio), None

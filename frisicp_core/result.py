@@ -8,6 +8,7 @@ import numpy as np
 
 from .ambiguity import Competitor
 from .config import Method
+from .fit import Fit
 from .similarity import FloatArray, Similarity
 from .uncertainty import Uncertainty
 
@@ -53,6 +54,9 @@ class RegistrationResult:
     ``uncertainty`` is the estimate's covariance and its 1-sigma summary
     (:class:`frisicp_core.uncertainty.Uncertainty`: ``scale`` relative, ``rotation_deg``,
     ``translation`` in model units at the data centroid; ``pose_covariance`` for ROS).
+    ``competitor`` is a distinct pose that fits about as well, when one was found (the result
+    is then not reliable: ambiguous); ``fit`` the hits and near misses where the clouds meet
+    (:mod:`frisicp_core.fit`); ``retried`` says why a warm start was retried cold ('' if not).
     """
 
     similarity: Similarity
@@ -72,6 +76,8 @@ class RegistrationResult:
     warm_started: bool
     uncertainty: Uncertainty | None = None
     competitor: Competitor | None = None
+    fit: Fit | None = None
+    retried: str = ""
 
     @property
     def covariance(self) -> FloatArray:

@@ -404,12 +404,13 @@ class Solver:
 
 
 def compare_finalists(
-    solver: Solver, level: Level, finalists: list[Similarity], relative_motion: float
+    solver: Solver, level: Level, finalists: list[Similarity], relative_motion: float, margin: float = 0.15
 ) -> tuple[tuple[Similarity, LevelReport, Pairs], list[Similarity]]:
     """Run every finalist of the screening on the first dense level (the coarsest points against
     the full sets) and keep the one that ends with the lowest merit: with exact nearest
     neighbours the merits rank basins more reliably than on the thinned screening level.
-    Also returns the others' poses there, best first (runners-up: possible competitors)."""
+    Also returns the others' poses there whose merits are within ``margin`` of the best's, best
+    first (runners-up: possible competitors)."""
     outcomes = []
     for pose in finalists:
         history_before = len(solver.history)
@@ -417,6 +418,6 @@ def compare_finalists(
         outcomes.append((float(outcome[2].merit[0]), outcome, solver.history[history_before:]))
         del solver.history[history_before:]
     outcomes.sort(key=lambda item: item[0])
-    _, best, history = outcomes[0]
+    lowest, best, history = outcomes[0]
     solver.history.extend(history)
-    return best, [outcome[0] for _, outcome, _ in outcomes[1:]]
+    return best, [outcome[0] for merit, outcome, _ in outcomes[1:] if merit <= (1.0 + margin) * lowest]

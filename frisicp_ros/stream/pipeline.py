@@ -9,7 +9,8 @@ A registered pair carries the core's plausibility verdict (``Registered.reliable
 ``reason``): an implausible result is reported, never used as a warm start. Only a reliable
 result becomes the next pair's warm start; any rejection or unreliable result clears it, so one
 garbage cloud cannot steer the pairs after it. (The core itself retries a warm start cold when
-the warm-started result is implausible; the pipeline does not retry.) With ``motion_model``
+the warm-started result is not reliable or clearly worse than the track's last result, which
+the pipeline passes it: a jump of the pose; the pipeline does not retry.) With ``motion_model``
 constant_velocity the warm start is the last result moved on by the motion between the last two
 (``frisicp_ros.stream.motion``).
 
@@ -128,6 +129,7 @@ class RegistrationPipeline:
     def __init__(self, settings: PipelineSettings | None = None) -> None:
         self.settings = settings or settings_from({})
         self._motion = MotionTracker()  # the last consecutive reliable results
+        self._track: RegistrationResult | None = None  # the last reliable result (jump detection)
         self._model_cache: tuple[Any, np.ndarray] | None = None
         self._frames: dict[str, str] = {}
         self._guess: InitialGuess | None = None
@@ -160,6 +162,7 @@ class RegistrationPipeline:
         """Forget the warm start, the cached model and the frames seen so far (not a pending
         guess: that is the user's latest word on where the data is)."""
         self._motion.reset()
+        self._track = None
         self._model_cache = None
         self._frames = {}
 
@@ -189,8 +192,10 @@ class RegistrationPipeline:
             if guessed and self._guess is None:  # the guess was used: no velocity across it
                 self._motion.reset()
             self._motion.update(header.stamp_ns, outcome.result.similarity)
+            self._track = outcome.result
         else:
             self._motion.reset()  # a rejection or an implausible result: next pair starts cold
+            self._track = None
         return outcome
 
     def _process(self, header: PairHeader, model_msg: Any, data_msg: Any) -> PairOutcome:
@@ -213,7 +218,12 @@ class RegistrationPipeline:
         config = replace(settings.registration, initial=initial, guess=guess)
         started, started_cpu = time.perf_counter(), time.thread_time()
         try:
-            result = register(data.points, model_points, config)
+            result = register(
+                data.points,
+                model_points,
+                config,
+                previous=self._track if initial is not None else None,
+            )
         except ValueError as err:  # degenerate geometry, too few points, coordinates that overflow
             timings = _timings(model_read, data, started, started_cpu)
             return Rejected(**vars(header), reason=f"registration: {err}", input="pair", timings=timings)

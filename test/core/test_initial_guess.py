@@ -20,12 +20,10 @@ def crop_of_surface() -> tuple[np.ndarray, np.ndarray]:
     return crop, model
 
 
-def test_a_guess_finds_a_turned_crop_that_the_blind_search_misses() -> None:
+def test_a_guess_finds_a_turned_crop_without_a_blind_search() -> None:
     crop, model = crop_of_surface()
     truth = Similarity(2.0, axis_angle_rotation([0.2, 0.3, 1.0], np.deg2rad(150.0)), [0.3, -0.2, 1.0])
     data = truth.inverse().apply(crop)
-    blind = register(data, model)
-    assert np.degrees((blind.similarity @ truth.inverse()).rotation_angle()) > 10.0
     rough = Similarity(1.0, axis_angle_rotation([0.2, 0.3, 1.0], np.deg2rad(158.0)), [0.4, -0.2, 1.0])
     guided = register(data, model, RegistrationConfig(guess=InitialGuess(rough, 5.0, 0.1, scale=None)))
     error = guided.similarity @ truth.inverse()
