@@ -559,29 +559,28 @@ def test_plot_draws_the_bag_over_time(capsys, bags, tmp_path):
 
 
 def test_initial_guess_steers_the_first_pair_and_tracking_follows(capsys, tmp_path):
-    """The turned strip of test_guess in a bag: blind, every pair is 120 degrees off (tracking
-    keeps the wrong answer); with --initial every pair is right, in every bag of a batch; refused
-    where parallel chunks would start blind."""
+    """The symmetric scene of test_guess in a bag: blind, no pair is answered right and reliable;
+    with --initial every pair is right, in every bag of a batch; refused where parallel chunks
+    would start blind."""
     from support.bags import CloudRecord
-    from support.guess_scene import turned_crop_clouds
+    from support.guess_scene import right_and_reliable, symmetric_scene_clouds
 
     from frisicp_ros.stream.outputs import rosbags_message_types
     from frisicp_ros.stream.pointcloud2 import cloud_to_points
 
-    model, data, truth, rough = turned_crop_clouds(rosbags_message_types())
+    model, data, truth, rough = symmetric_scene_clouds(rosbags_message_types())
     records = [CloudRecord(MODEL_TOPIC, 1, 1, MODEL_FRAME, cloud_to_points(model, 3))]
     for k, cloud in enumerate(data):
         stamp = stamp_ns_of(cloud.header)
         records.append(CloudRecord(DATA_TOPIC, 10 + k, stamp, DATA_FRAME, cloud_to_points(cloud, 3)))
-    bag = write_rosbag2(tmp_path / "turned", records, storage="mcap")
+    bag = write_rosbag2(tmp_path / "symmetric", records, storage="mcap")
     pose = " ".join(str(v) for v in [*rough.translation, *rough.quaternion()])
 
-    def errors(*extra: str) -> list[float]:
-        code, out, err = run_cli(capsys, *bag_args(bag, "--max-points", "0", *extra))
-        assert code == 0, err
-        return [rotation_angle_deg(np.array(r["rotation"]).T @ truth.rotation) for r in read_jsonl(out)]
-
-    assert all(error > 10.0 for error in errors())
+    code, out, err = run_cli(capsys, *bag_args(bag, "--max-points", "0"))
+    assert code == 0, err
+    for record in read_jsonl(out):
+        error = rotation_angle_deg(np.array(record["rotation"]).T @ truth.rotation)
+        assert not right_and_reliable(error, record["reliable"])
     # Two bags (the same recording): the guess steers the first pair of each, which starts cold
     # as if registered alone, so both get the same right lines.
     shutil.copytree(bag, tmp_path / "again")
@@ -596,9 +595,10 @@ def test_initial_guess_steers_the_first_pair_and_tracking_follows(capsys, tmp_pa
         *("--initial", pose, "--initial-sigma", "5,0.1"),
     )
     assert code == 0, err
-    turned, again = (read_jsonl((out / f"{name}.jsonl").read_text()) for name in ("turned", "again"))
-    assert [r["rotation"] for r in turned] == [r["rotation"] for r in again]
-    assert all(rotation_angle_deg(np.array(r["rotation"]).T @ truth.rotation) < 0.5 for r in turned)
+    first, again = (read_jsonl((out / f"{name}.jsonl").read_text()) for name in ("symmetric", "again"))
+    assert [r["rotation"] for r in first] == [r["rotation"] for r in again]
+    assert all(r["reliable"] for r in first)
+    assert all(rotation_angle_deg(np.array(r["rotation"]).T @ truth.rotation) < 0.5 for r in first)
     for parallel in (["--jobs", "2"], ["--scheduler", "tcp://127.0.0.1:1"]):
         code, _, err = run_cli(
             capsys, *bag_args(bag, "--initial", pose, "--initial-sigma", "5,0.1", *parallel)

@@ -1,5 +1,6 @@
 """Fuzz: a live node fed >= 2,000 hostile PointCloud2 messages of every known class (as data and
-as model), interleaved with valid pairs. Seeded and bounded (20-80 s on 2 cores, by load).
+as model), interleaved with valid pairs. Seeded and bounded (9.8 min on the shared
+2-core VM under load, 2026-12-01; 20-80 s with the core before its global search and probes).
 
 Asserts: the node stays alive (worker, executor); every valid pair is answered correctly
 (rotation < 1 degree, scale < 1 %); no cloud of nonsense numbers (wrong byte order, random
@@ -39,11 +40,19 @@ pytestmark = pytest.mark.ros
 SEED = 2026
 HOSTILE_MESSAGES = 2100
 VALID_EVERY = 8  # a valid pair after every 8 hostile messages
-POINTS = 300
+# Valid clouds of 1,000 points (800 as data), noise-free. With 300 (240) the core put 3 sigma of
+# the rotation at 0.9-3.2 degrees (24 of 25 pairs unreliable) while the answers were 0.03-0.21
+# degrees off; with 1,000 the answers are <= 0.02 degrees off and 3 sigma <= 0.2 degrees.
+POINTS = 1000
+SHAPE = bumpy_surface(POINTS, seed=5)
+# Hostile clouds are made from a 300-point shape: their size is not what they test, and the
+# decodable garbage among them (another shape, random bytes, int8) costs 4x more to register at
+# 1,000 points (another shape: 1.6 s a cloud against 0.4 s, the core searching for a match).
+HOSTILE_POINTS = 300
+HOSTILE_SHAPE = bumpy_surface(HOSTILE_POINTS, seed=5)
 STEP_TIMEOUT = 10.0
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
 FLOAT64 = PointField.FLOAT64
-SHAPE = bumpy_surface(POINTS, seed=5)
 
 
 def valid_truth(k: int) -> Similarity:
@@ -74,9 +83,14 @@ def _valid_data(rng: np.random.Generator, stamp_ns: int) -> PointCloud2:
     return _cloud(SHAPE[rng.permutation(POINTS)[: POINTS * 4 // 5]], stamp_ns)
 
 
+def _hostile_base(rng: np.random.Generator, stamp_ns: int) -> PointCloud2:
+    """A well-formed cloud of the small shape, for the mutations to spoil."""
+    return _cloud(HOSTILE_SHAPE[rng.permutation(HOSTILE_POINTS)[: HOSTILE_POINTS * 4 // 5]], stamp_ns)
+
+
 def _mutated(change: Callable[[PointCloud2, np.random.Generator], None]):
     def make(rng: np.random.Generator, stamp_ns: int) -> PointCloud2:
-        msg = _valid_data(rng, stamp_ns)
+        msg = _hostile_base(rng, stamp_ns)
         change(msg, rng)
         return msg
 
@@ -102,8 +116,8 @@ def _random_bytes(msg: PointCloud2, rng: np.random.Generator) -> None:
 
 
 def _outlier(rng: np.random.Generator, stamp_ns: int) -> PointCloud2:
-    points = SHAPE.copy()
-    points[rng.integers(POINTS)] = [rng.choice([-1, 1]) * 10.0 ** rng.uniform(20, 35), 0.0, 0.0]
+    points = HOSTILE_SHAPE.copy()
+    points[rng.integers(HOSTILE_POINTS)] = [rng.choice([-1, 1]) * 10.0 ** rng.uniform(20, 35), 0.0, 0.0]
     return _float64_cloud(points, stamp_ns)
 
 
@@ -124,17 +138,19 @@ HOSTILE: dict[str, Callable[[np.random.Generator, int], PointCloud2]] = {
     "empty": lambda rng, stamp: _cloud(np.zeros((0, 3)), stamp),
     "all NaN": lambda rng, stamp: _cloud(np.full((50, 3), np.nan), stamp),
     "some NaN and Inf": lambda rng, stamp: _cloud(
-        np.where(rng.random((POINTS, 1)) < 0.2, np.inf, SHAPE)
-        * np.where(rng.random((POINTS, 1)) < 0.1, np.nan, 1),
+        np.where(rng.random((HOSTILE_POINTS, 1)) < 0.2, np.inf, HOSTILE_SHAPE)
+        * np.where(rng.random((HOSTILE_POINTS, 1)) < 0.1, np.nan, 1),
         stamp,
     ),
     "identical points": lambda rng, stamp: _cloud(np.ones((100, 3)) * rng.normal(size=3), stamp),
     "collinear": lambda rng, stamp: _cloud(np.outer(rng.random(100), rng.normal(size=3)), stamp),
     "too few points": lambda rng, stamp: _cloud(rng.normal(size=(int(rng.integers(1, 4)), 3)), stamp),
     "one far outlier": _outlier,
-    "coordinates 1e300": lambda rng, stamp: _float64_cloud(SHAPE * 10.0 ** rng.uniform(160, 300), stamp),
-    "coordinates 1e-300": lambda rng, stamp: _float64_cloud(SHAPE * 1e-300, stamp),
-    "another shape": lambda rng, stamp: _cloud(rng.normal(size=(POINTS, 3)) * [3, 1, 0.2], stamp),
+    "coordinates 1e300": lambda rng, stamp: _float64_cloud(
+        HOSTILE_SHAPE * 10.0 ** rng.uniform(160, 300), stamp
+    ),
+    "coordinates 1e-300": lambda rng, stamp: _float64_cloud(HOSTILE_SHAPE * 1e-300, stamp),
+    "another shape": lambda rng, stamp: _cloud(rng.normal(size=(HOSTILE_POINTS, 3)) * [3, 1, 0.2], stamp),
     "odd frame id": _mutated(lambda msg, rng: setattr(msg.header, "frame_id", "ä/" * 200)),
 }
 
