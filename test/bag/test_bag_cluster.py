@@ -16,7 +16,6 @@ import json
 import os
 import signal
 import subprocess
-import sys
 import time
 from pathlib import Path
 
@@ -34,13 +33,14 @@ from support.bags import (
     write_rosbag2,
 )
 from support.cluster import LocalDaskCluster
+from support.scripts import installed_script
 
 from frisicp_core import bumpy_surface
 from frisicp_ros.cli import main as cli
 
 pytest.importorskip("distributed", reason="the cluster tests need Dask's distributed (the [dask] extra)")
 
-FRISICP = Path(sys.executable).parent / "frisicp"
+FRISICP = installed_script("frisicp")  # beside the interpreter, or in a colcon install prefix
 TOPICS = ["--model-topic", MODEL_TOPIC, "--data-topic", DATA_TOPIC]
 PAIRS = 24  # per bag: three chunks of 8; 3000-point clouds take tens of ms per pair
 POINTS = 3000
