@@ -29,11 +29,11 @@ tracebacks printed).
 
     nice -n 10 python benchmarks/cluster_throughput.py            # 60 pairs of 30,000 points, 3 tries
     python benchmarks/cluster_throughput.py --pairs 16 --points 5000   # a quick look
+    python benchmarks/cluster_throughput.py --quick   # every section once: 8 pairs of 2,000 points
 """
 
 from __future__ import annotations
 
-import argparse
 import json
 import multiprocessing
 import os
@@ -51,6 +51,8 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).parent))
 from bag_throughput import DATA_TOPIC, MODEL_TOPIC, write_bag
+
+from frisicp_bench import script
 
 BIN = Path(sys.executable).parent
 ONE_THREAD = {"OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
@@ -250,16 +252,19 @@ def local_cluster_ctrl_c(workdir: Path) -> dict[str, object]:
 
 
 def main() -> int:
-    parser = argparse.ArgumentParser(
-        description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
+    parser = script.parser(
+        __file__,
+        __doc__,
+        "every section once: 8 pairs of 2,000-point clouds, one try, one start-up",
+        repeats=3,
+        json_out=True,
     )
     parser.add_argument("--pairs", type=int, default=60)
     parser.add_argument("--points", type=int, default=30000)
-    parser.add_argument(
-        "--repeats", type=int, default=3, help="tries of every configuration (the best counts)"
-    )
-    parser.add_argument("--json", type=Path, help="also write the figures here")
-    args = parser.parse_args()
+    args = script.parse(parser)
+    start_up_repeats = 5
+    if args.quick:
+        args.pairs, args.points, args.repeats, start_up_repeats = 8, 2000, 1, 1
     with tempfile.TemporaryDirectory() as tmp:
         workdir = Path(tmp)
         bag = workdir / "input"
@@ -290,7 +295,7 @@ def main() -> int:
         reference = lines_without_timing(outputs["--jobs 1"])
         identical = {name: lines_without_timing(path) == reference for name, path in outputs.items()}
         reading = chunk_reading_per_pair(bag)
-        start_up = start_up_seconds()
+        start_up = start_up_seconds(start_up_repeats)
         ctrl_c = local_cluster_ctrl_c(workdir)
     end_to_end = (
         runs["--scheduler, 1 worker"]["wall_seconds"] - runs["--jobs 1"]["wall_seconds"]
