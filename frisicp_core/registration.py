@@ -53,6 +53,7 @@ from .poses import PoseBatch
 from .result import IterationRecord, LevelReport, RegistrationResult
 from .sampling import downsample, in_spatial_order, level_sizes
 from .similarity import FloatArray, Similarity
+from .units import Units
 from .verdict import judge, spread
 
 # Most passes a hypothesis gets on the screening level to settle into its local minimum.
@@ -591,11 +592,17 @@ def register(
     cold: a poisoned start must not turn later good pairs into wrong answers.
     """
     config = config or RegistrationConfig()
-    result = _register(data, model, config)
+    # Validated first, so that the units (frisicp_core.units) are those of the points used.
+    data_set = as_point_set(data, "data", drop_nonfinite=config.drop_nonfinite)
+    model_set = as_point_set(model, "model", drop_nonfinite=config.drop_nonfinite)
+    units = Units.of(data_set, model_set)
+    data_set, model_set = units.scaled(data_set, model_set)
+    config = units.config(config)
+    result = _register(data_set, model_set, config)
     if config.initial is not None and not result.reliable:
-        cold = _register(data, model, replace(config, initial=None))
-        return replace(cold, seconds=result.seconds + cold.seconds)
-    return result
+        cold = _register(data_set, model_set, replace(config, initial=None))
+        result = replace(cold, seconds=result.seconds + cold.seconds)
+    return units.restore(result)
 
 
 def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> RegistrationResult:

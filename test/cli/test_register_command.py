@@ -94,6 +94,17 @@ def test_bad_files_exit_2_with_one_line_and_no_traceback(tmp_path, content, mess
     assert message in done.stderr and "Traceback" not in done.stderr
 
 
+def test_data_in_large_units_registers(tmp_path):
+    """The data in units 1e80 times the model's ended in `IndexError: index 4294967295` and exit 1."""
+    np.save(tmp_path / "data.npy", DATA * 1e80)
+    np.save(tmp_path / "model.npy", MODEL)
+    done = run("register", str(tmp_path / "data.npy"), str(tmp_path / "model.npy"), "--json")
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout)
+    assert out["reliable"] and out["scale"] == pytest.approx(2.5e-80, rel=1e-6)
+    np.testing.assert_allclose(out["translation"], TRUTH.translation, atol=1e-5)
+
+
 def test_nan_points_are_refused_unless_dropping_was_asked_for(tmp_path):
     data = DATA.copy()
     data[::100] = np.nan
