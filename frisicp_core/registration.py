@@ -43,6 +43,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .acceleration import AndersonAccelerator
+from .budget import Deadline
 from .config import Method, RegistrationConfig
 from .estimate import PairPart, estimate_similarities
 from .hypotheses import covariance_scale_bounds, initial_hypotheses
@@ -306,6 +307,7 @@ class _Solver:
         self.scale_bounds = scale_bounds
         self.model_radius = model_radius
         self.start = start
+        self.deadline = Deadline(config.budget_seconds, start)
         self.history: list[IterationRecord] = []
 
     def correspond(self, level: _Level, poses: PoseBatch) -> _Pass:
@@ -420,6 +422,8 @@ class _Solver:
         )
         previous = np.full(len(poses), np.inf)  # each hypothesis's merit one pass earlier
         for iteration in range(1, _SCREENING_PASSES + 1):
+            if self.deadline.passed():
+                break  # the hypotheses as they stand (below)
             merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
             stepped, valid = self.step(level, pairs)
             stepped = poses.where(valid, stepped)
@@ -516,6 +520,9 @@ class _Solver:
         converged = False
         iterations = 0
         for iterations in range(1, criteria.max_iterations + 1):
+            if self.deadline.passed():
+                iterations -= 1  # not run; not converged: the result will say "budget exceeded"
+                break
             self._record(index, iterations, pairs)
             stepped, valid = self.step(level, pairs)
             if not valid[0]:
@@ -598,10 +605,16 @@ def register(
     units = Units.of(data_set, model_set)
     data_set, model_set = units.scaled(data_set, model_set)
     config = units.config(config)
-    result = _register(data_set, model_set, config)
-    if config.initial is not None and not result.reliable:
-        cold = _register(data_set, model_set, replace(config, initial=None))
-        result = replace(cold, seconds=result.seconds + cold.seconds)
+    # A pose far off (a warm start from clouds in other units) throws points past float64: their
+    # distances are inf (or NaN: inf times a scale that squared to 0), the pose's merit is not
+    # finite and it is dropped, or the result is unreliable. numpy's warnings on the way would
+    # only be noise on a node's stderr.
+    with np.errstate(over="ignore", invalid="ignore"):
+        result = _register(data_set, model_set, config)
+        left = None if config.budget_seconds is None else config.budget_seconds - result.seconds
+        if config.initial is not None and not result.reliable and (left is None or left > 0):
+            cold = _register(data_set, model_set, replace(config, initial=None, budget_seconds=left))
+            result = replace(cold, seconds=result.seconds + cold.seconds)
     return units.restore(result)
 
 
@@ -673,6 +686,7 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
         model_radius=model_radius,
         spreads=(spread(data_set), spread(model_set)),
     )
+    budget = solver.deadline.reason
     return RegistrationResult(
         similarity=sim,
         rms=rms,
@@ -686,7 +700,7 @@ def _register(data: ArrayLike, model: ArrayLike, config: RegistrationConfig) -> 
         method=config.method,
         overlap_forward=overlap_forward,
         overlap_backward=overlap_backward,
-        reliable=verdict.reliable,
-        reason=verdict.reason,
+        reliable=verdict.reliable and not budget,
+        reason="; ".join(reason for reason in (budget, verdict.reason) if reason),
         warm_started=config.initial is not None,
     )

@@ -11,7 +11,8 @@ or choices, description and the surfaces it appears on. Generated from it:
 
 Algorithm rows name a field of :class:`~frisicp_core.RegistrationConfig` (``core``; dotted for
 ``criteria``) and take their type, default and enum choices from ``RegistrationConfig()``, so
-adding or changing a core option is one row here. ROS parameters have no null: a core ``None``
+adding or changing a core option is one row here. One exception: ``budget_seconds`` is a
+stream option with a stream default (5 s; the core's is unbounded, for whole clouds). ROS parameters have no null: a core ``None``
 is written as the type's zero (0, 0.0 or ""), and the row's ``zero_means`` says what that stands
 for ("off", "automatic"). Values are always in that parameter form (bool, int, float, str);
 :func:`settings_from` validates them and builds the typed :class:`PipelineSettings`.
@@ -134,15 +135,20 @@ def core_option(
     core: str | None = None,
     surfaces: Surface = EVERYWHERE,
     kind: type | None = None,
+    default: Value | None = None,
     **details: Any,
 ) -> Option:
     """A row backed by a RegistrationConfig field (``core``, default: ``name``).
 
     Type, default and enum choices come from ``RegistrationConfig()``. A field whose default is
-    None needs ``kind`` and ``zero_means``: the parameter's zero stands for None.
+    None needs ``kind`` and ``zero_means``: the parameter's zero stands for None. ``default``
+    replaces the core's for a stream-only row (``budget_seconds``: a stream must keep up, while
+    a library call runs to its end).
     """
     path = core or name
-    default = _core_default(path)
+    if default is not None and surfaces & Surface.REGISTER:
+        raise TypeError(f"{name}: frisicp register takes the core's defaults; a row's own is for streams")
+    default = _core_default(path) if default is None else default
     choices = details.pop("choices", None)
     if isinstance(default, enum.Enum):
         choices = choices or tuple(str(member.value) for member in type(default))
@@ -175,6 +181,9 @@ def _core_default(path: str | None) -> Any:
 def _number(value: float) -> str:
     return str(int(value)) if float(value).is_integer() else repr(value)
 
+
+# The registration budget of the node and frisicp bag (the core's default is unbounded).
+STREAM_BUDGET_SECONDS = 5.0
 
 MODEL_QOS_CHOICES = ("sensor_data", "reliable", "transient_local")
 DATA_QOS_CHOICES = ("sensor_data", "reliable")
@@ -346,6 +355,17 @@ OPTIONS: tuple[Option, ...] = (
     ),
     core_option("seed", "seed of the random down-sampling", bounds=(0, 2**31 - 1)),
     core_option("backend", "KD-tree library (auto: pykdtree when installed)", choices=BACKENDS),
+    core_option(
+        "budget_seconds",
+        "wall-clock seconds one registration may take: past it the iterations stop and the result"
+        ' is unreliable ("budget exceeded"), so no cloud holds the worker for long (pairs of'
+        " max_points clouds take 0.02-0.5 s); 0 = unbounded",
+        kind=float,
+        zero_means="unbounded",
+        bounds=(0.0, 86400.0),
+        surfaces=STREAM,
+        default=STREAM_BUDGET_SECONDS,
+    ),
     core_option(
         "drop_nonfinite",
         "drop NaN/Inf points instead of failing (clouds in the node and bag mode always drop them)",

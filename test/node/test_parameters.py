@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import fields
+from dataclasses import fields, replace
 from pathlib import Path
 
 import pytest
@@ -59,7 +59,10 @@ def test_every_core_option_is_an_option_with_the_core_default():
     core |= {f"criteria.{f.name}" for f in fields(ConvergenceCriteria)}
     backed = {o.core for o in settings.OPTIONS if o.core}
     assert core == backed, sorted(core ^ backed)
-    assert PipelineSettings.create().registration == RegistrationConfig()  # same defaults as the core
+    # The core's defaults, but for the stream's own budget (a library call runs to its end).
+    stream_default = PipelineSettings.create().registration
+    assert stream_default == replace(RegistrationConfig(), budget_seconds=settings.STREAM_BUDGET_SECONDS)
+    assert RegistrationConfig().budget_seconds is None and settings.STREAM_BUDGET_SECONDS == 5.0
     assert OPTIONS_BY_NAME["backend"].choices == BACKENDS  # the core's list, not a copy
 
 
