@@ -23,7 +23,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import textwrap
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -57,6 +57,15 @@ class Group(str, enum.Enum):
 
 
 @dataclass(frozen=True)
+class Rule:
+    """A check beyond type, range and choices: ``text`` is what it demands (said in the error, the
+    node's parameter descriptor, the YAML comment and ``--help``), ``holds`` decides."""
+
+    text: str
+    holds: Callable[[Any], bool]
+
+
+@dataclass(frozen=True)
 class Option:
     """One row of the table. Build rows with :func:`option` or :func:`core_option`."""
 
@@ -73,6 +82,7 @@ class Option:
     zero_means: str | None = None  # what 0 / 0.0 / "" stands for: the core's None
     flags: tuple[str, ...] = ()  # command-line spellings; default --name-with-dashes
     needs: tuple[str, Value] | None = None  # CLI: only meaningful with that option at that value
+    rule: Rule | None = None
 
     @property
     def cli_flags(self) -> tuple[str, ...]:
@@ -90,6 +100,8 @@ class Option:
             low, high = self.bounds
             if not low <= value <= high:
                 raise ValueError(f"{self.name} must be in [{_number(low)}, {_number(high)}], got {value!r}")
+        if self.rule is not None and not self.rule.holds(value):
+            raise ValueError(f"{self.name} must be {self.rule.text}, got {_shown(value)}")
         return value
 
     def to_core(self, value: Value) -> object:
@@ -182,6 +194,25 @@ def _number(value: float) -> str:
     return str(int(value)) if float(value).is_integer() else repr(value)
 
 
+def _shown(value: Value) -> str:
+    """A value for an error message: a 5,000-character string must not become the message."""
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:50]}... ({len(str(value))} characters)"
+
+
+# Voxels finer than this (in the clouds' units; a micrometre in metres) keep every point of any
+# real cloud and only cost a sort (70 ms per 100k points); 1e-300 made the grid overflow float64.
+SMALLEST_VOXEL = 1e-6
+VOXEL_RULE = Rule(f"0 (off) or at least {SMALLEST_VOXEL:g}", lambda size: size == 0 or size >= SMALLEST_VOXEL)
+# A tf2 frame id: no length limit there, but a 5,000-character one can only be a mistake (after
+# it every pair was rejected as a frame mismatch); spaces and control characters likewise.
+LONGEST_FRAME = 255
+FRAME_RULE = Rule(
+    f"a frame id of at most {LONGEST_FRAME} printable characters without spaces, or empty",
+    lambda frame: len(frame) <= LONGEST_FRAME and frame.isprintable() and not any(c.isspace() for c in frame),
+)
+
+
 # The registration budget of the node and frisicp bag (the core's default is unbounded).
 STREAM_BUDGET_SECONDS = 5.0
 
@@ -264,6 +295,7 @@ OPTIONS: tuple[Option, ...] = (
         "edge of a voxel grid (in the clouds' units, m for most sensors) applied to both clouds"
         " before max_points: the first point of each occupied voxel is kept; 0 = off",
         bounds=(0.0, 1e9),
+        rule=VOXEL_RULE,
     ),
     stream_option(
         "warm_start", True, "start each registration from the previous converged estimate (tracking)"
@@ -275,8 +307,12 @@ OPTIONS: tuple[Option, ...] = (
         " recent velocity for the stamp gap; needs increasing stamps) or none (the last result)",
         choices=MOTION_MODELS,
     ),
-    stream_option("model_frame", "", "expected frame id of the model clouds; empty = accept any"),
-    stream_option("data_frame", "", "expected frame id of the data clouds; empty = accept any"),
+    stream_option(
+        "model_frame", "", "expected frame id of the model clouds; empty = accept any", rule=FRAME_RULE
+    ),
+    stream_option(
+        "data_frame", "", "expected frame id of the data clouds; empty = accept any", rule=FRAME_RULE
+    ),
     stream_option(
         "publish_aligned",
         True,
@@ -534,6 +570,8 @@ def _yaml_comment(row: Option) -> str:
         notes.append("one of " + " | ".join(row.choices))
     if row.bounds is not None:
         notes.append(f"range [{_number(row.bounds[0])}, {_number(row.bounds[1])}]")
+    if row.rule is not None:
+        notes.append(row.rule.text)
     if row.read_only:
         notes.append("read-only")
     return row.description + (f" ({'; '.join(notes)})" if notes else "")

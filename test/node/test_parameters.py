@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 from dataclasses import fields, replace
 from pathlib import Path
 
@@ -42,6 +43,29 @@ def test_settings_from_rejects_with_the_reason_and_accepts_valid_values():
     with pytest.raises(ValueError, match="unknown option"):
         settings_from({**values, "coarse_points": 500})
     assert settings_from({**values, "dims": 2, "pairing": "synchronized"}).dims == 2
+
+
+@pytest.mark.parametrize(
+    ("name", "value", "message"),
+    [
+        # The grid overflowed float64 and each cloud cost a sort and a RuntimeWarning.
+        ("voxel_size", 1e-300, "voxel_size must be 0 (off) or at least 1e-06, got 1e-300"),
+        # Accepted, after which every pair was rejected as a frame mismatch.
+        ("model_frame", "m" * 5000, "model_frame must be a frame id of at most 255 printable"),
+        ("data_frame", "base link", "data_frame must be a frame id of at most 255 printable"),
+        ("data_frame", "lidar\n", "data_frame must be a frame id"),
+    ],
+)
+def test_harmful_values_are_refused_with_the_rule_they_break(name, value, message):
+    with pytest.raises(ValueError, match=re.escape(message)) as refused:
+        settings_from({name: value})
+    assert len(str(refused.value)) < 200  # a 5,000-character value is not repeated in full
+    rule = OPTIONS_BY_NAME[name].rule
+    assert (
+        rule is not None and parameters.descriptor(OPTIONS_BY_NAME[name]).additional_constraints == rule.text
+    )
+    for fine in (0.0, 1e-6, 0.05) if name == "voxel_size" else ("", "map", "f" * 255, "robot_1/lidar"):
+        assert getattr(settings_from({name: fine}), name) == fine
 
 
 def test_descriptors_carry_descriptions_and_ranges():
