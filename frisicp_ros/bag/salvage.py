@@ -13,6 +13,7 @@ and the node's replay read a damaged bag like any other and then report the dama
 
 from __future__ import annotations
 
+import functools
 import shutil
 import sqlite3
 import struct
@@ -114,15 +115,15 @@ def salvage(path: Path) -> SalvagedBag | None:
             start = stream.read(16)
     except OSError:
         return None
-    if start.startswith(MCAP_MAGIC):
-        bag = SalvagedBag(path, lambda: _mcap_records(path), ros1=False)
-    elif start.startswith(ROS1_MAGIC):
-        bag = SalvagedBag(path, lambda: _ros1_records(path), ros1=True)
-    elif start.startswith(SQLITE_MAGIC):
-        bag = SalvagedBag(path, lambda: _sqlite_records(path), ros1=False)
-    else:
-        return None
-    return bag if bag.message_count else None
+    scans = {MCAP_MAGIC: _mcap_records, ROS1_MAGIC: _ros1_records, SQLITE_MAGIC: _sqlite_records}
+    for magic, records in scans.items():
+        if start.startswith(magic):
+            try:
+                bag = SalvagedBag(path, functools.partial(records, path), ros1=magic == ROS1_MAGIC)
+            except Exception:  # noqa: BLE001 - a salvage attempt never raises: the caller reports
+                return None  # rosbags' reason for refusing the file
+            return bag if bag.message_count else None
+    return None
 
 
 # --- MCAP: records from the file's start; a chunk is used only if its CRC holds ------------------
@@ -285,7 +286,12 @@ def _ros1_chunk(
 
 def _sqlite_records(path: Path) -> Iterator[Connection | Raw]:
     """A copy whose header states the pages that are really there (a cut file's header still
-    counts the lost ones, and SQLite then refuses even its schema); rows until a missing page."""
+    counts the lost ones, and SQLite then refuses even its schema); rows until a missing page.
+
+    One query per row: Python's cursor steps to the next row before it returns the current one,
+    and drops the current one when that step fails, so a plain cursor lost the last intact row
+    before the damage (one pair fewer than lay before the cut).
+    """
     with tempfile.TemporaryDirectory(prefix="frisicp-salvage-") as folder:
         copy = Path(folder) / path.name
         shutil.copyfile(path, copy)
@@ -298,18 +304,22 @@ def _sqlite_records(path: Path) -> Iterator[Connection | Raw]:
                 raise Damage(f"its topic table is unreadable ({err})") from None
             connections = {row[0]: Connection(row[0], str(row[1]), str(row[2])) for row in rows}
             yield from connections.values()
-            cursor = database.execute("SELECT topic_id, timestamp, data FROM messages ORDER BY id")
+            last = -(2**63)
             while True:
                 try:
-                    row = cursor.fetchone()
+                    row = database.execute(_NEXT_ROW, (last,)).fetchone()
                 except sqlite3.DatabaseError as err:
-                    raise Damage(f"the message table is damaged ({err})") from None
+                    raise Damage(f"the message table is damaged after row {last} ({err})") from None
                 if row is None:
                     raise Damage("its pages end early")  # all rows read, yet the file was refused
-                if row[0] in connections:
-                    yield connections[row[0]], int(row[1]), bytes(row[2])
+                last = row[0]
+                if row[1] in connections:
+                    yield connections[row[1]], int(row[2]), bytes(row[3])
         finally:
             database.close()
+
+
+_NEXT_ROW = "SELECT id, topic_id, timestamp, data FROM messages WHERE id > ? ORDER BY id LIMIT 1"
 
 
 def _fit_sqlite_header(path: Path) -> None:
