@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo test lint config bench bench-quick bench-paper bench-paper-quick bench-partial bench-node bench-bag clean
+.PHONY: setup demo test test-floors lint config fuzz bench bench-quick bench-paper bench-paper-quick bench-partial bench-node bench-bag clean
 
 $(STAMP): setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +21,18 @@ demo: $(STAMP)
 test: $(STAMP)
 	@$(BIN)/python -m pytest -q test; rc=$$?; \
 	  if [ $$rc -eq 5 ]; then echo "pytest collected no tests: failing"; fi; exit $$rc
+
+# setup.py's lower bounds, installed exactly (.ci/dependency_floors.py) in a venv of their own, run
+# the bag tests: the code that leans most on other packages' APIs (rosbags, mcap). ~2 min.
+FLOORS := .venv-floors
+test-floors:
+	rm -rf $(FLOORS)
+	$(PYTHON) -m venv $(FLOORS)
+	$(FLOORS)/bin/pip install --quiet --upgrade pip
+	$(FLOORS)/bin/pip install --quiet $$($(PYTHON) .ci/dependency_floors.py) "pytest>=7" "mcap-ros2-support==0.5.0"
+	$(FLOORS)/bin/pip install --quiet --no-deps -e .
+	$(FLOORS)/bin/pip list --format=freeze | grep -iE '^(numpy|scipy|pykdtree|plyfile|pypcd4|rosbags|mcap|tqdm)=='
+	$(FLOORS)/bin/python -m pytest -q -p no:cacheprovider test/bag
 
 # ruff (lint and format) over the tree; mypy: the core strict, the ROS side and the benchmark typed.
 lint: $(STAMP)
@@ -63,4 +75,4 @@ bench-bag: $(STAMP)
 	$(BIN)/python benchmarks/bag_throughput.py --pairs $(or $(PAIRS),200)
 
 clean:
-	rm -rf $(VENV) build install log *.egg-info
+	rm -rf $(VENV) $(FLOORS) build install log *.egg-info

@@ -273,3 +273,24 @@ def write_mcap_ros2(path: Path, records: Sequence[CloudRecord], chunk_size: int 
             )
         writer.finish()
     return path
+
+
+def write_mcap_unchunked(path: Path, records: Sequence[CloudRecord]) -> Path:
+    """A bare ``.mcap`` with its messages outside chunks, under a CRC of the whole data section
+    (mcap's own writer, CDR from rosbags): what only the data section's CRC protects."""
+    from mcap.writer import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    with path.open("wb") as stream:
+        writer = Writer(stream, use_chunking=False, enable_crcs=True, enable_data_crcs=True)
+        writer.start(profile="ros2", library="frisicp tests")
+        schema = writer.register_schema("sensor_msgs/msg/PointCloud2", "ros2msg", POINTCLOUD2_MSGDEF.encode())
+        channels = {}
+        for record in records:
+            if record.topic not in channels:
+                channels[record.topic] = writer.register_channel(record.topic, "cdr", schema)
+            raw = typestore.serialize_cdr(rosbags_cloud(typestore, record), "sensor_msgs/msg/PointCloud2")
+            writer.add_message(channels[record.topic], record.bag_ns, bytes(raw), record.bag_ns)
+        writer.finish()
+    return path
