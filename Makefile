@@ -41,6 +41,12 @@ lint: $(STAMP)
 	$(BIN)/mypy --strict frisicp_core
 	$(BIN)/mypy frisicp_ros frisicp_bench
 
+# The fault campaign (tools/fuzz/run.py): hostile files, damaged bags, signal storms, hostile
+# messages and parameters to a live node (loopback DDS, domain 171); niced, seeded, bounded by
+# MINUTES (default 10). Counts in docs/reliability.md.
+fuzz: $(STAMP)
+	$(BIN)/python tools/fuzz/run.py --minutes $(or $(MINUTES),10) $(if $(ONLY),--only $(ONLY))
+
 # config/frisicp.yaml is generated from the settings table (frisicp_ros/stream/settings.py).
 config: $(STAMP)
 	$(BIN)/python -m frisicp_ros.stream.settings > config/frisicp.yaml.new && mv config/frisicp.yaml.new config/frisicp.yaml

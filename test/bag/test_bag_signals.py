@@ -25,6 +25,7 @@ from support.bags import (
     MODEL_TOPIC,
     CloudRecord,
     data_cloud,
+    one_model_then_data,
     truth_for,
     write_rosbag2,
 )
@@ -39,13 +40,7 @@ TOPICS = ("--model-topic", MODEL_TOPIC, "--data-topic", DATA_TOPIC)
 @pytest.fixture(scope="module")
 def long_bag(tmp_path_factory) -> Path:
     """200 pairs: far more than can finish before the signals."""
-    model = bumpy_surface(3000, seed=1)
-    records = [CloudRecord(MODEL_TOPIC, 10**9, 10**9, MODEL_FRAME, model)]
-    for k in range(200):
-        stamp = 2 * 10**9 + k * 10**8
-        records.append(
-            CloudRecord(DATA_TOPIC, stamp, stamp, DATA_FRAME, data_cloud(model, truth_for(k % 4), k))
-        )
+    records, _ = one_model_then_data(200, 3000)
     return write_rosbag2(tmp_path_factory.mktemp("signals") / "long", records, "mcap")
 
 

@@ -11,20 +11,15 @@ import json
 
 import pytest
 from support.bags import (
-    DATA_FRAME,
     DATA_TOPIC,
-    MODEL_FRAME,
     MODEL_TOPIC,
-    CloudRecord,
     assert_matches_truth,
-    data_cloud,
-    truth_for,
+    one_model_then_data,
     write_mcap_ros2,
     write_ros1_bag,
     write_rosbag2,
 )
 
-from frisicp_core import bumpy_surface
 from frisicp_ros.cli import main as cli
 
 PAIRS = 20
@@ -34,13 +29,7 @@ PAIRS = 20
 def recordings(tmp_path_factory):
     """One model, then 20 data clouds, in every format; truth by data bag time."""
     root = tmp_path_factory.mktemp("damaged")
-    model = bumpy_surface(600, seed=1)
-    records = [CloudRecord(MODEL_TOPIC, 10**9, 10**9, MODEL_FRAME, model)]
-    truth = {}
-    for k in range(PAIRS):
-        stamp = 2 * 10**9 + k * 10**8
-        truth[stamp] = truth_for(k % 4)
-        records.append(CloudRecord(DATA_TOPIC, stamp, stamp, DATA_FRAME, data_cloud(model, truth[stamp], k)))
+    records, truth = one_model_then_data(PAIRS, 600)
     files = {
         "rosbag2-sqlite3": write_rosbag2(root / "sqlite", records, "sqlite3") / "sqlite.db3",
         "rosbag2-mcap": write_rosbag2(root / "mcap", records, "mcap") / "mcap.mcap",

@@ -98,6 +98,19 @@ def standard_scenario(points: int = 1500) -> Scenario:
     return scenario
 
 
+def one_model_then_data(pairs: int, points: int) -> tuple[list[CloudRecord], dict[int, Similarity]]:
+    """One model at 1 s, then ``pairs`` data clouds 0.1 s apart of known poses (four, in turn):
+    the records, and the truth by data bag time."""
+    model = bumpy_surface(points, seed=1)
+    records = [CloudRecord(MODEL_TOPIC, 10**9, 10**9, MODEL_FRAME, model)]
+    truth = {}
+    for k in range(pairs):
+        stamp = 2 * 10**9 + k * 10**8
+        truth[stamp] = truth_for(k % 4)
+        records.append(CloudRecord(DATA_TOPIC, stamp, stamp, DATA_FRAME, data_cloud(model, truth[stamp], k)))
+    return records, truth
+
+
 def cloud_bytes(points: np.ndarray) -> bytes:
     packed = np.zeros(
         len(points),
