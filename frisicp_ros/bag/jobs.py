@@ -108,7 +108,8 @@ def _starting_workers() -> Iterator[None]:
     Blocked in this thread only, never ignored: a signal meant for the parent meanwhile is
     delivered to another of its threads (Python's handler then runs here) or waits until the
     mask is restored. Ignoring them process-wide, as before, discarded a Ctrl-C the kernel handed
-    to another thread: `frisicp bag --jobs 2` ran on to its end in 2 of 6 tries.
+    to another thread: `frisicp bag --jobs 2` ran on to its end in 2-4 of 8 tries
+    (``tools/fuzz/repro.py ctrl-c``).
     """
     with _worker_environment():
         if threading.current_thread() is not threading.main_thread():
