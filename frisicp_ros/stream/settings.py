@@ -394,8 +394,8 @@ OPTIONS: tuple[Option, ...] = (
     core_option(
         "budget_seconds",
         "wall-clock seconds one registration may take: past it the iterations stop and the result"
-        ' is unreliable ("budget exceeded"), so no cloud holds the worker for long (pairs of'
-        " max_points clouds take 0.02-0.5 s); 0 = unbounded",
+        ' is unreliable ("budget exceeded"), so no cloud holds the worker for long (a pair of'
+        " 10000-point clouds takes ~20-45 ms, see max_points); 0 = unbounded",
         kind=float,
         zero_means="unbounded",
         bounds=(0.0, 86400.0),
