@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo test lint config bench bench-smoke bench-paper bench-paper-quick bench-partial bench-node bench-bag bench-cluster clean
+.PHONY: setup demo test test-floors lint config fuzz bench bench-smoke bench-paper bench-paper-quick bench-partial bench-node bench-bag bench-cluster clean
 
 $(STAMP): setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
@@ -22,12 +22,30 @@ test: $(STAMP)
 	@$(BIN)/python -m pytest -q test; rc=$$?; \
 	  if [ $$rc -eq 5 ]; then echo "pytest collected no tests: failing"; fi; exit $$rc
 
+# setup.py's lower bounds, installed exactly (.ci/dependency_floors.py) in a venv of their own, run
+# the bag tests: the code that leans most on other packages' APIs (rosbags, mcap). ~2 min.
+FLOORS := .venv-floors
+test-floors:
+	rm -rf $(FLOORS)
+	$(PYTHON) -m venv $(FLOORS)
+	$(FLOORS)/bin/pip install --quiet --upgrade pip
+	$(FLOORS)/bin/pip install --quiet $$($(PYTHON) .ci/dependency_floors.py) "pytest>=7" "mcap-ros2-support==0.5.0"
+	$(FLOORS)/bin/pip install --quiet --no-deps -e .
+	$(FLOORS)/bin/pip list --format=freeze | grep -iE '^(numpy|scipy|pykdtree|plyfile|pypcd4|rosbags|mcap|tqdm)=='
+	$(FLOORS)/bin/python -m pytest -q -p no:cacheprovider test/bag
+
 # ruff (lint and format) over the tree; mypy: the core strict, the ROS side and the benchmark typed.
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy --strict frisicp_core
 	$(BIN)/mypy frisicp_ros frisicp_bench
+
+# The fault campaign (tools/fuzz/run.py): hostile files, damaged bags, signal storms, hostile
+# messages and parameters to a live node (loopback DDS, domain 171); niced, seeded, bounded by
+# MINUTES (default 10). Counts in docs/reliability.md.
+fuzz: $(STAMP)
+	$(BIN)/python tools/fuzz/run.py --minutes $(or $(MINUTES),10) $(if $(ONLY),--only $(ONLY))
 
 # config/frisicp.yaml is generated from the settings table (frisicp_ros/stream/settings.py).
 config: $(STAMP)
@@ -79,4 +97,4 @@ bench-cluster: $(STAMP)
 	nice -n 10 $(BIN)/python benchmarks/cluster_throughput.py --pairs $(or $(PAIRS),60)
 
 clean:
-	rm -rf $(VENV) build install log *.egg-info
+	rm -rf $(VENV) $(FLOORS) build install log *.egg-info
