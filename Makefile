@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo test test-floors lint config fuzz bench bench-smoke bench-paper bench-paper-quick bench-partial bench-node bench-bag bench-cluster clean
+.PHONY: setup demo test test-floors lint config fuzz bench bench-smoke bench-paper bench-paper-quick bench-partial bench-node bench-bag bench-cluster bench-trust clean
 
 $(STAMP): setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
@@ -55,6 +55,11 @@ config: $(STAMP)
 # when installed. One OpenMP thread, as the node and the bag workers run.
 bench: $(STAMP)
 	OMP_NUM_THREADS=1 $(BIN)/python benchmarks/core_speed.py
+
+# Trustworthy answers on the real scenes (crops, sparse maps, frames, scan pairs, turned scans,
+# unrelated objects, jumps): right or honestly unreliable, calibration -> docs/trustworthy.md.
+bench-trust: $(STAMP)
+	nice -n 5 $(BIN)/python benchmarks/trustworthy.py --jobs $(or $(JOBS),2)
 
 # Every script in benchmarks/ once with --quick: seconds each, reports under build/ (docs/ keeps
 # the full runs' figures), so a script that no longer runs against today's code fails here (CI).
