@@ -36,6 +36,7 @@ are built once per level, never per iteration.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -379,12 +380,15 @@ class _Refiner:
     config: RegistrationConfig
     last: int
 
-    def settle_rough(self, starts: list[Similarity]) -> tuple[PoseBatch, FloatArray]:
+    def settle_rough(
+        self, starts: list[Similarity], returned: Callable[[Similarity], bool]
+    ) -> tuple[PoseBatch, FloatArray]:
         """Every start settled on the thinned screening level (plain steps, batched): cheap, and
-        good enough to nominate candidates for :meth:`down`."""
+        good enough to nominate candidates for :meth:`down`. A start that has ``returned`` (to
+        the answer) is settled: its basin is the answer's."""
         tolerance = self.config.criteria.coarse_relative_motion * self.solver.model_radius
         level = self.levels.screening_level()
-        return self.solver.settle(level, PoseBatch.of(starts), tolerance, _PROBE_PASSES)
+        return self.solver.settle(level, PoseBatch.of(starts), tolerance, _PROBE_PASSES, returned)
 
     def down(self, sim: Similarity) -> tuple[Similarity, Pairs]:
         """``sim`` run down the levels as the answer was; its final pairs (the merit to compare)."""
@@ -425,7 +429,9 @@ def _probe(
     centre = centroid(data)
     diagonal = float(np.linalg.norm(model.max(axis=0) - model.min(axis=0)))
     starts = [sim, *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data))]
-    poses, merits = refine.settle_rough(starts)
+    poses, merits = refine.settle_rough(
+        starts, lambda pose: separation(pose, sim, centre, diagonal, config.tolerance) <= 1.0
+    )
     settled = poses[0]
     ranked = sorted(
         (float(merits[k]) / float(merits[0]), k)

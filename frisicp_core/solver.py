@@ -260,10 +260,16 @@ class Solver:
         return _finalists(minima, level, tolerance)
 
     def settle(
-        self, level: Level, poses: PoseBatch, tolerance: float, passes: int
+        self,
+        level: Level,
+        poses: PoseBatch,
+        tolerance: float,
+        passes: int,
+        done: Callable[[Similarity], bool] | None = None,
     ) -> tuple[PoseBatch, FloatArray]:
         """Plain ICP steps for every pose of the batch until each moves the data by less than
-        ``tolerance`` (at most ``passes``); the poses reached and their merits."""
+        ``tolerance`` (at most ``passes``), or ``done`` says its pose needs no more; the poses
+        reached and their merits."""
         pairs = self.correspond(level, poses)
         merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
         active = np.flatnonzero(np.isfinite(merit))
@@ -277,7 +283,10 @@ class Solver:
             poses = poses.assign(active, current.where(valid, stepped))
             pairs = self.correspond(level, poses.take(active))
             merit[active] = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
-            keep = np.flatnonzero(valid & (moved > tolerance))
+            going = valid & (moved > tolerance)
+            if done is not None:
+                going &= [not done(poses[int(k)]) for k in active]
+            keep = np.flatnonzero(going)
             pairs, active = rows_of(pairs, keep), active[keep]
         return poses, merit
 

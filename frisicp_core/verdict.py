@@ -36,8 +36,11 @@ from .uncertainty import Uncertainty
 
 SCALE_RANGE = 10.0
 MAX_RELATIVE_RMS = 0.1
-# Largest share of near misses (frisicp_core.fit) a fitting pose leaves in the better direction.
-MAX_NEAR_SHARE = 0.25
+# Largest share of near misses (frisicp_core.fit) a fitting pose leaves in the better direction:
+# a gross-misfit check beside the probes and the uncertainty, which catch the subtler wrong
+# answers. At 0.25 it refused 9 of 224 right answers of benchmarks/trustworthy.py (two real scans
+# whose occlusion edges miss each other: 37-38 %) and caught no wrong one the others missed.
+MAX_NEAR_SHARE = 0.5
 # A result is reliable only when this many standard deviations lie within the tolerances.
 SIGMAS = 3.0
 
