@@ -4,7 +4,7 @@ VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: setup demo test colcon-test lint config bench bench-smoke bench-paper bench-paper-quick bench-partial bench-node bench-bag bench-cluster clean
+.PHONY: setup demo test test-floors colcon-test lint config fuzz bench bench-smoke bench-paper bench-paper-quick bench-partial bench-node bench-bag bench-cluster bench-trust clean
 
 $(STAMP): setup.py setup.cfg package.xml
 	$(PYTHON) -m venv $(VENV)
@@ -30,12 +30,30 @@ COLCON_TESTS ?= -m "not slow"
 colcon-test: $(STAMP)
 	cd test && ../$(BIN)/python -m support.workspace $(COLCON_TESTS)
 
+# setup.py's lower bounds, installed exactly (.ci/dependency_floors.py) in a venv of their own, run
+# the bag tests: the code that leans most on other packages' APIs (rosbags, mcap). ~2 min.
+FLOORS := .venv-floors
+test-floors:
+	rm -rf $(FLOORS)
+	$(PYTHON) -m venv $(FLOORS)
+	$(FLOORS)/bin/pip install --quiet --upgrade pip
+	$(FLOORS)/bin/pip install --quiet $$($(PYTHON) .ci/dependency_floors.py) "pytest>=7" "mcap-ros2-support==0.5.0"
+	$(FLOORS)/bin/pip install --quiet --no-deps -e .
+	$(FLOORS)/bin/pip list --format=freeze | grep -iE '^(numpy|scipy|pykdtree|plyfile|pypcd4|rosbags|mcap|tqdm)=='
+	$(FLOORS)/bin/python -m pytest -q -p no:cacheprovider test/bag
+
 # ruff (lint and format) over the tree; mypy: the core strict, the ROS side and the benchmark typed.
 lint: $(STAMP)
 	$(BIN)/ruff check .
 	$(BIN)/ruff format --check .
 	$(BIN)/mypy --strict frisicp_core
 	$(BIN)/mypy frisicp_ros frisicp_bench
+
+# The fault campaign (tools/fuzz/run.py): hostile files, damaged bags, signal storms, hostile
+# messages and parameters to a live node (loopback DDS, domain 171); niced, seeded, bounded by
+# MINUTES (default 10). Counts in docs/reliability.md.
+fuzz: $(STAMP)
+	$(BIN)/python tools/fuzz/run.py --minutes $(or $(MINUTES),10) $(if $(ONLY),--only $(ONLY))
 
 # config/frisicp.yaml and the parameter tables of docs/node.md and README.md are generated from the
 # settings table (frisicp_ros/stream/settings.py).
@@ -47,6 +65,11 @@ config: $(STAMP)
 # when installed. One OpenMP thread, as the node and the bag workers run.
 bench: $(STAMP)
 	OMP_NUM_THREADS=1 $(BIN)/python benchmarks/core_speed.py
+
+# Trustworthy answers on the real scenes (crops, sparse maps, frames, scan pairs, turned scans,
+# unrelated objects, jumps): right or honestly unreliable, calibration -> docs/trustworthy.md.
+bench-trust: $(STAMP)
+	nice -n 5 $(BIN)/python benchmarks/trustworthy.py --jobs $(or $(JOBS),2)
 
 # Every script in benchmarks/ once with --quick: seconds each, reports under build/ (docs/ keeps
 # the full runs' figures), so a script that no longer runs against today's code fails here (CI).
@@ -89,4 +112,4 @@ bench-cluster: $(STAMP)
 	nice -n 10 $(BIN)/python benchmarks/cluster_throughput.py --pairs $(or $(PAIRS),60)
 
 clean:
-	rm -rf $(VENV) build install log *.egg-info
+	rm -rf $(VENV) $(FLOORS) build install log *.egg-info

@@ -31,15 +31,20 @@ setup(
         (f"share/{PACKAGE}/launch", glob("launch/*.launch.py")),
     ],
     python_requires=">=3.10",
+    # Lower bounds are tested: `make test-floors` installs exactly these and runs the bag tests.
     install_requires=[
         "numpy>=1.24",
         "scipy>=1.10",
         # Kept after measuring the alternatives (docs/nn_backends.md): ~1.7x scipy's cKDTree in
         # register; nanoflann bindings 0.99-1.26x of it, not worth a dependency. cKDTree is the fallback.
-        "pykdtree>=1.3",
+        "pykdtree>=1.3.6",  # the first with wheels (1.3.0 no longer builds)
         "plyfile>=1.0",  # PLY (ASCII and binary) reading for the CLI
         "pypcd4>=1.1",  # PCD (ascii, binary, binary_compressed) reading for the CLI
-        "rosbags>=0.10",  # offline bag mode, no ROS installation needed
+        # Offline bag mode, no ROS installation needed. 0.11: AnyReader opens bare .db3/.mcap files
+        # (0.10.9 added the MCAP writer of the result bag). Only its public API is used.
+        "rosbags>=0.11",
+        # MCAP through its own maintainers' reader: every chunk's CRC checked (frisicp_ros.bag.mcap_bag).
+        "mcap>=1.1",
         "tqdm>=4.60",  # progress bar of the bag mode
         "matplotlib>=3.6",  # pictures: frisicp register/bag --plot, frisicp-demo (imported only to draw)
     ],
@@ -56,7 +61,6 @@ setup(
         "test": [
             "distributed>=2024.8",  # the cluster tests start a real scheduler and workers
             "pytest>=7",
-            "mcap>=1.1",
             "mcap-ros2-support>=0.5",
             "colcon-common-extensions",
             "pillow>=9",

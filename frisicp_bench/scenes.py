@@ -167,3 +167,92 @@ def frames_case(
     scale = float(np.exp(rng.choice((-1.0, 1.0)) * rng.uniform(0.01, 0.05)))
     moved = protocol_similarity(model, scale, 5.0, rng)
     return SceneCase(f"{name} frames step {step:.2f}", "frames", moved.apply(data), model, moved.inverse())
+
+
+def object_cloud(data_dir: Path, name: str) -> FloatArray:
+    """A real object or scene by file name: ``bun*.ply`` from bunny/ (metres), else real/."""
+    if name.startswith("bun") and name.endswith(".ply"):
+        return read_points(require(data_dir / "bunny" / name))
+    return real_cloud(data_dir, name)
+
+
+def reference_placement(data: FloatArray, model: FloatArray) -> Similarity:
+    """Where a real scan pair lies: a careful rigid registration (cold FRISICP search, then rigid
+    ICP from it on the full sets with the noise floor off). A reference, not a truth."""
+    from frisicp_core import ConvergenceCriteria, Method, RegistrationConfig, register
+
+    start = register(data, model).similarity
+    rigid = RegistrationConfig(
+        method=Method.ICP,
+        initial=Similarity(1.0, start.rotation, start.translation),
+        criteria=ConvergenceCriteria(noise_floor=False),
+    )
+    return register(data, model, rigid).similarity
+
+
+def pair_case(
+    data: FloatArray,
+    model: FloatArray,
+    placement: Similarity,
+    name: str,
+    scale: float,
+    rng: np.random.Generator,
+) -> SceneCase:
+    """A real scan pair placed by ``placement`` (data onto model), moved by the protocol's
+    similarity at ``scale``."""
+    moved = protocol_similarity(model, scale, 30.0, rng)
+    return SceneCase(
+        f"{name} s={scale:.3g}", "scan pair", moved.apply(data), model, placement @ moved.inverse()
+    )
+
+
+def turned_scan_case(
+    scan: FloatArray, pose: Similarity, model: FloatArray, name: str, degrees: float, rng: np.random.Generator
+) -> SceneCase:
+    """A real scan (its pose into the model's frame given) turned by ``degrees`` about a random
+    axis through its centroid and scaled by a log-uniform 0.5-2."""
+    from frisicp_core import axis_angle_rotation
+
+    placed = pose.apply(scan)
+    axis = rng.normal(size=3)
+    turn = Similarity.about(
+        placed.mean(axis=0), log_uniform_scale(0.5, 2.0, rng), axis_angle_rotation(axis, np.deg2rad(degrees))
+    )
+    return SceneCase(f"{name} {degrees:.0f} deg", "scan turned", turn.apply(placed), model, turn.inverse())
+
+
+def unrelated_shape(kind: str, count: int, rng: np.random.Generator) -> FloatArray:
+    """A cloud of another object (unit size): a sphere, a cube's surface, a cylinder, a plane or a
+    uniformly filled box."""
+    if kind == "sphere":
+        points = rng.normal(size=(count, 3))
+        return points / np.linalg.norm(points, axis=1, keepdims=True)
+    if kind == "cube":
+        points = rng.uniform(-1.0, 1.0, size=(count, 3))
+        face = rng.integers(3, size=count)
+        points[np.arange(count), face] = np.sign(points[np.arange(count), face])
+        return points
+    if kind == "cylinder":
+        angle = rng.uniform(0.0, 2.0 * np.pi, count)
+        return np.column_stack([np.cos(angle), np.sin(angle), rng.uniform(-1.5, 1.5, count)])
+    if kind == "plane":
+        return np.column_stack([rng.uniform(-1.0, 1.0, size=(count, 2)), rng.normal(scale=1e-3, size=count)])
+    if kind == "box":
+        return rng.uniform(-1.0, 1.0, size=(count, 3)) * [1.0, 0.6, 0.4]
+    raise ValueError(f"unknown shape {kind!r}")
+
+
+UNRELATED = ("sphere", "cube", "cylinder", "plane", "box")
+
+
+def unrelated_case(
+    shape: FloatArray, obj: FloatArray, name: str, reverse: bool, rng: np.random.Generator
+) -> SceneCase:
+    """A cloud of another object registered onto ``obj`` (``reverse``: ``obj`` onto it): no
+    answer exists, so any reliable result is wrong."""
+    size = model_size(obj) / model_size(shape)
+    other = shape * size + obj.mean(axis=0)
+    data, model = (obj, other) if reverse else (other, obj)
+    moved = protocol_similarity(model, log_uniform_scale(0.3, 3.0, rng), 30.0, rng)
+    suite = "unrelated object"
+    return SceneCase(f"{name}{' (back)' if reverse else ''}", suite, moved.apply(data), model, None)

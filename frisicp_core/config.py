@@ -142,7 +142,7 @@ class RegistrationConfig:
     (scale rule), ``initialization`` (hypothesis search), ``acceleration``. Also ``initial``
     (warm start: tracking, iterated from there), ``guess`` (a rough pose with its uncertainty: searched
     around), ``max_distance`` (gating), ``drop_nonfinite``, ``seed`` (the random
-    down-sampling), ``backend`` (KD-tree library).
+    down-sampling), ``backend`` (KD-tree library), ``budget_seconds``.
 
     ``overlap``: None (default) estimates, in each direction separately and at every iteration,
     which share of the nearest-neighbour pairs belongs to the overlap (trimmed ICP's criterion,
@@ -162,6 +162,10 @@ class RegistrationConfig:
     converges somewhere else and the finest level starts a few iterations away; with dense
     targets every level estimates the same optimum and the finest needs one or two. The
     coarsest level, where the initial hypotheses are screened, is thinned on both sides.
+    ``budget_seconds``: wall-clock time one ``register`` call may take (None, the default:
+    unbounded; the node and ``frisicp bag`` set 5 s). Past it the iterations stop and the result
+    is returned unreliable, reason "budget exceeded" (see :mod:`frisicp_core.budget`); the cold
+    retry of a warm start gets what is left.
     """
 
     method: Method = Method.FRISICP
@@ -182,6 +186,7 @@ class RegistrationConfig:
     drop_nonfinite: bool = False
     seed: int = 0
     backend: str = "auto"
+    budget_seconds: float | None = None
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "method", Method(self.method))
@@ -197,6 +202,10 @@ class RegistrationConfig:
             f"max_distance must be positive or None, got {self.max_distance}",
         )
         _require(self.backend in BACKENDS, f"unknown backend {self.backend!r}; choose one of {BACKENDS}")
+        _require(
+            self.budget_seconds is None or self.budget_seconds > 0,
+            f"budget_seconds must be positive or None (unbounded), got {self.budget_seconds}",
+        )
         _require(self.initial is None or isinstance(self.initial, Similarity), "initial must be a Similarity")
         _require(self.guess is None or isinstance(self.guess, InitialGuess), "guess must be an InitialGuess")
 

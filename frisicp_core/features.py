@@ -38,7 +38,7 @@ from .voxel import voxel_filter
 
 # Support points per keypoint neighbourhood queried (a surface holds ~50 within r on an r/4 grid).
 _SUPPORT_NEIGHBOURS = 64
-_NORMAL_NEIGHBOURS = 32
+_NORMAL_NEIGHBOURS = 16  # a surface holds ~13 support points within NORMAL_REACH
 # Normals are fitted to the support points within this share of the descriptor's radius.
 NORMAL_REACH = 0.5
 _ANGLE_BINS = 8
@@ -63,10 +63,10 @@ def describe(points: FloatArray, radius: float, max_keypoints: int | None = None
     support = voxel_filter(points, radius / 4.0)
     tree = NearestNeighbors(support)
     normals, means = _normals_within(tree, support, NORMAL_REACH * radius)
-    # Moving-least-squares-like denoising: each support point onto its neighbourhood's plane.
+    # Moving-least-squares-like denoising: each support point onto its neighbourhood's plane (its
+    # normal stays: the plane's, fitted to the noisy points, is what the projection used).
     support = support - np.einsum("ni,ni->n", support - means, normals)[:, None] * normals
     tree = NearestNeighbors(support)
-    normals, _ = _normals_within(tree, support, NORMAL_REACH * radius)
     keys = voxel_filter(support, radius / 2.0)
     if max_keypoints is not None and keys.shape[0] > max_keypoints:
         chosen = np.random.default_rng(0).choice(keys.shape[0], size=max_keypoints, replace=False)

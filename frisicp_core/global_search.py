@@ -4,12 +4,12 @@ ICP and the hypotheses of :mod:`frisicp_core.hypotheses` start where the clouds'
 radii and principal axes point; a crop of a scene sits anywhere in it, at a scale its radius
 does not tell, and turned any way. This stage finds such poses from local shape:
 
-1. **A scale ladder.** The data are described at one radius r_d = :data:`DATA_RADIUS` times
-   their RMS radius (:func:`frisicp_core.features.describe`); the model at r_d s_k for the
+1. **A scale ladder.** The data are described at radii r_d = :data:`DATA_RADII` times their
+   RMS radius (:func:`frisicp_core.features.describe`); the model at r_d s_k for the
    candidate scales s_k = ratio 2^(k/2), k in :data:`SCALE_STEPS` (ratio: the clouds' RMS radius
    ratio; a crop's true scale is a few octaves from it either way). At the right rung both
    describe the same patches.
-2. **Matches.** Every data keypoint's nearest model descriptor.
+2. **Matches.** Every data keypoint's :data:`MATCHES` nearest model descriptors.
 3. **A robust similarity** (RANSAC, Fischler and Bolles 1981): random triples of matches whose
    two triangles are similar (side ratios within :data:`TRIANGLE_AGREEMENT` of each other, a
    scale-free test that discards most wrong triples before any fit; cf. the pairwise
@@ -17,8 +17,9 @@ does not tell, and turned any way. This stage finds such poses from local shape:
    (:func:`frisicp_core.estimate.estimate_similarities`) and scored by the matches it brings
    within half a model radius-step of their partners.
 
-The best few distinct poses over all rungs, ranked by the share of matches they explain, are
-returned as starting poses; ICP takes them from there and the usual screening decides.
+The best poses of every rung are ranked together by how much of the two clouds they make
+coincide (:func:`_coverage`), and the best few are returned as starting poses; ICP takes them
+from there and the usual comparison on the first dense level decides.
 """
 
 from __future__ import annotations
@@ -31,13 +32,21 @@ from .kdtree import NearestNeighbors
 from .points import rms_radius
 from .similarity import FloatArray, Similarity
 
-DATA_RADIUS = 0.35
+# The second radius is the first times sqrt(2), a rung apart: both meet the same model radii,
+# which are described once.
+DATA_RADII = (0.35, 0.35 * 2**0.5)
 SCALE_STEPS = tuple(range(-6, 7))
 TRIANGLE_AGREEMENT = 1.15
-SAMPLES = 10000
+SAMPLES = 40000
+# Model descriptors matched to each data descriptor (its nearest few: the right one is often second).
+MATCHES = 3
 # Model keypoints per rung at most (a random subset beyond), and starting poses returned.
 MAX_MODEL_KEYPOINTS = 4000
 STARTS = 8
+# Poses are ranked by the points they bring within this share of the model's RMS radius of the
+# other cloud (see _coverage), measured on about this many points of each cloud.
+FIT_REACH = 0.02
+_COVERAGE_SAMPLE = 500
 # Fewest keypoints worth matching.
 _MIN_KEYPOINTS = 10
 # Poses scored per batch (the scoring holds batch x matches x m numbers).
@@ -46,34 +55,63 @@ _BATCH = 2000
 
 def feature_starts(data: FloatArray, model: FloatArray, rng: np.random.Generator) -> list[Similarity]:
     """Starting poses for ``data`` onto ``model`` from descriptor matches (module doc), best first."""
-    data_radius = rms_radius(data)
-    ratio = rms_radius(model) / data_radius
-    radius = DATA_RADIUS * data_radius
-    described = describe(data, radius)
-    if described.keypoints.shape[0] < _MIN_KEYPOINTS:
-        return []
-    scored: list[tuple[float, Similarity]] = []
-    for k in SCALE_STEPS:
-        rung = ratio * 2.0 ** (k / 2)
-        model_described = describe(model, radius * rung, MAX_MODEL_KEYPOINTS)
-        if model_described.keypoints.shape[0] < _MIN_KEYPOINTS:
+    data_radius, model_radius = rms_radius(data), rms_radius(model)
+    ratio = model_radius / data_radius
+    candidates: list[Similarity] = []
+    model_described_at: dict[int, Descriptors] = {}  # by rung index from the first data radius
+    for step, share in enumerate(DATA_RADII):
+        radius = share * data_radius
+        described = describe(data, radius)
+        if described.keypoints.shape[0] < _MIN_KEYPOINTS:
             continue
-        for share, pose in _robust_poses(described, model_described, rung, rng):
-            scored.append((share, pose))
-    scored.sort(key=lambda item: -item[0])
-    return [pose for _, pose in scored[:STARTS]]
+        for k in SCALE_STEPS:
+            rung = ratio * 2.0 ** (k / 2)
+            key = k + step  # this model radius is rung k + step of the first data radius
+            if key not in model_described_at:
+                model_described_at[key] = describe(model, radius * rung, MAX_MODEL_KEYPOINTS)
+            model_described = model_described_at[key]
+            if model_described.keypoints.shape[0] < _MIN_KEYPOINTS:
+                continue
+            candidates += [pose for _, pose in _robust_poses(described, model_described, rung, rng)]
+    if not candidates:
+        return []
+    coverage = _coverage(candidates, data, model, FIT_REACH * model_radius)
+    return [candidates[k] for k in np.argsort(-coverage, kind="stable")[:STARTS]]
+
+
+def _coverage(poses: list[Similarity], data: FloatArray, model: FloatArray, reach: float) -> FloatArray:
+    """For each pose, the share of (a sample of) the data points it brings within ``reach`` of
+    the model plus the share of model points it brings the data within ``reach`` of: how much of
+    the clouds it makes coincide. The rungs' own scores are not comparable between rungs (a
+    coarse rung's few keypoints are matched within a wide reach, by chance too); this is."""
+    data_sample = data[:: max(1, data.shape[0] // _COVERAGE_SAMPLE)]
+    model_sample = model[:: max(1, model.shape[0] // _COVERAGE_SAMPLE)]
+    model_tree, data_tree = NearestNeighbors(model), NearestNeighbors(data)
+    shares = np.zeros(len(poses))
+    for k, pose in enumerate(poses):
+        forward, _ = model_tree.query(pose.apply(data_sample))
+        backward, _ = data_tree.query(pose.inverse().apply(model_sample))
+        shares[k] = np.mean(forward <= reach**2) + np.mean(backward * pose.scale**2 <= reach**2)
+    return shares
 
 
 def _robust_poses(
     data: Descriptors, model: Descriptors, rung: float, rng: np.random.Generator
 ) -> list[tuple[float, Similarity]]:
-    """The best poses of one rung, with the share of the data keypoints each explains."""
-    _, nearest = NearestNeighbors(model.values).query(data.values)
-    source, target = data.keypoints, model.keypoints[nearest]
-    count = source.shape[0]
-    triples = rng.integers(count, size=(SAMPLES, 3))
+    """The best poses of one rung, each refitted to all the matches it explains (Chum, Matas and
+    Kittler 2003: a sample's pose is only as good as three noisy keypoints; its inliers' least
+    squares fit is far better), with the share of the data keypoints it explains."""
+    _, nearest = NearestNeighbors(model.values).query_k(data.values, MATCHES)
+    matches = nearest.shape[1]
+    source = np.repeat(data.keypoints, matches, axis=0)
+    target = model.keypoints[nearest.reshape(-1)]
+    count = data.keypoints.shape[0]
+    triples = rng.integers(source.shape[0], size=(SAMPLES, 3))
+    keypoint = triples // matches  # three different data keypoints
     triples = triples[
-        (triples[:, 0] != triples[:, 1]) & (triples[:, 1] != triples[:, 2]) & (triples[:, 0] != triples[:, 2])
+        (keypoint[:, 0] != keypoint[:, 1])
+        & (keypoint[:, 1] != keypoint[:, 2])
+        & (keypoint[:, 0] != keypoint[:, 2])
     ]
     a, b = source[triples], target[triples]
     sides_a, sides_b = _sides(a), _sides(b)
@@ -94,8 +132,22 @@ def _robust_poses(
         error = np.linalg.norm(poses.take(rows).apply(source) - target[None], axis=2)
         explained[rows] = np.count_nonzero(error < reach, axis=1)
     explained[~valid] = -1
-    best = np.argsort(-explained, kind="stable")[:3]
-    return [(float(explained[k]) / count, poses[int(k)]) for k in best if explained[k] > 0]
+    out = []
+    for k in np.argsort(-explained, kind="stable")[:3]:
+        if explained[k] <= 0:
+            continue
+        pose = poses[int(k)]
+        for _ in range(2):  # refit to the inliers, twice (the first refit gains some)
+            inliers = np.linalg.norm(pose.apply(source) - target, axis=1) < reach
+            if np.count_nonzero(inliers) < 4:
+                break
+            refit, ok = estimate_similarities([PairPart(source, target, inliers[None].astype(np.float64))])
+            if not ok[0]:
+                break
+            pose = refit[0]
+        share = np.count_nonzero(np.linalg.norm(pose.apply(source) - target, axis=1) < reach) / count
+        out.append((float(share), pose))
+    return out
 
 
 def _sides(triangles: FloatArray) -> FloatArray:

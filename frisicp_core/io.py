@@ -22,8 +22,7 @@ class CloudFileError(ValueError):
 def read_points(path: str | Path) -> FloatArray:
     """Coordinates of a point cloud file: x, y and z (z only if present) as an (N, m) array."""
     file = Path(path)
-    if not file.is_file():
-        raise CloudFileError(f"{file}: no such file")
+    _check_regular_file(file)
     suffix = file.suffix.lower()
     try:
         if suffix == ".ply":
@@ -37,8 +36,33 @@ def read_points(path: str | Path) -> FloatArray:
     except CloudFileError:
         raise
     except Exception as err:  # noqa: BLE001 - any parser failure becomes one clear message
-        raise CloudFileError(f"{file}: cannot read it as {suffix[1:].upper()} ({err})") from None
+        raise CloudFileError(f"{file}: cannot read it as {suffix[1:].upper()} ({_one_line(err)})") from None
     raise CloudFileError(f"{file}: unknown extension {suffix!r} (use .ply, .pcd, .xyz, .csv, .txt or .npy)")
+
+
+def _check_regular_file(file: Path) -> None:
+    """Refuse what is not a non-empty regular file, saying what it is (opening a FIFO would wait
+    for a writer forever)."""
+    if not file.exists():
+        raise CloudFileError(f"{file}: no such file")
+    if file.is_dir():
+        raise CloudFileError(f"{file}: is a directory, not a point cloud file")
+    if not file.is_file():
+        raise CloudFileError(
+            f"{file}: not a regular file (a FIFO, socket or device); give a point cloud file"
+        )
+    if file.stat().st_size == 0:
+        raise CloudFileError(f"{file}: the file is empty (0 bytes)")
+
+
+def _one_line(err: Exception) -> str:
+    """A parser's message as one line. pydantic (pypcd4's header model) lists each missing field
+    on lines of their own with a web link: said here as the fields the header lacks."""
+    errors = getattr(err, "errors", None)
+    if callable(errors) and type(err).__name__ == "ValidationError":
+        fields = [".".join(str(part) for part in entry.get("loc", ())) for entry in errors()]
+        return f"the header is incomplete or invalid: {', '.join(fields)}"
+    return " ".join(str(err).split())
 
 
 def read_scan_pose(conf: str | Path, name: str) -> Similarity:
@@ -58,6 +82,8 @@ def read_scan_pose(conf: str | Path, name: str) -> Similarity:
 
 
 def _as_points(array: np.ndarray, file: Path) -> FloatArray:
+    if np.iscomplexobj(array):
+        raise CloudFileError(f"{file}: holds complex numbers ({array.dtype}), not coordinates")
     pts = np.asarray(array, dtype=np.float64)
     if pts.ndim != 2 or pts.shape[1] < 2:
         raise CloudFileError(f"{file}: expected rows of at least 2 coordinates, got shape {pts.shape}")
@@ -87,7 +113,12 @@ def _read_text(file: Path) -> FloatArray:
         skip = 0
     except (ValueError, IndexError):
         skip = 1  # a header line
-    table = np.loadtxt(file, delimiter=delimiter, skiprows=skip, ndmin=2)
+    with warnings.catch_warnings():
+        # A header and no rows: said below as "no points", not as numpy's warning on stderr.
+        warnings.filterwarnings("ignore", message="loadtxt: input contained no data")
+        table = np.loadtxt(file, delimiter=delimiter, skiprows=skip, ndmin=2)
+    if table.size == 0:
+        raise CloudFileError(f"{file}: no points (a header line and no rows)")
     return _as_points(table[:, : min(3, table.shape[1])], file)
 
 

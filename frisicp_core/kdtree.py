@@ -56,9 +56,17 @@ class NearestNeighbors:
         q = np.ascontiguousarray(queries, dtype=np.float64)
         if self.backend == "pykdtree":
             dist_sq, idx = self._tree.query(q, k=1, sqr_dists=True)
-            return np.asarray(dist_sq, dtype=np.float64), idx.astype(np.int64)
-        dist, idx = self._tree.query(q, k=1, workers=-1)
-        return dist * dist, idx.astype(np.int64, copy=False)
+            dist_sq, idx = np.asarray(dist_sq, dtype=np.float64), idx.astype(np.int64)
+        else:
+            dist, idx = self._tree.query(q, k=1, workers=-1)
+            dist_sq, idx = dist * dist, idx.astype(np.int64, copy=False)
+        # A query whose squared distance to every stored point overflows float64 (a warm start
+        # with scale 1e-200 throws the points 1e200 away) finds no neighbour: both libraries
+        # then return an index past the end (pykdtree 2**32 - 1, scipy n) and distance inf. Any
+        # stored point will do as its partner: the distance stays inf, so the pose's merit is
+        # inf and the solver drops or rejects it, instead of an IndexError.
+        np.minimum(idx, self.points.shape[0] - 1, out=idx)
+        return dist_sq, idx
 
     def query_k(self, queries: FloatArray, k: int) -> tuple[FloatArray, np.ndarray]:
         """The ``k`` nearest stored points of every query row, nearest first: (squared distances,
@@ -68,10 +76,13 @@ class NearestNeighbors:
         if self.backend == "pykdtree":
             dist_sq, idx = self._tree.query(q, k=k, sqr_dists=True)
             dist_sq = np.asarray(dist_sq, dtype=np.float64).reshape(q.shape[0], k)
-            return dist_sq, idx.astype(np.int64).reshape(q.shape[0], k)
-        dist, idx = self._tree.query(q, k=k, workers=-1)
-        dist = np.asarray(dist, dtype=np.float64).reshape(q.shape[0], k)
-        return dist * dist, np.asarray(idx, dtype=np.int64).reshape(q.shape[0], k)
+            idx = idx.astype(np.int64).reshape(q.shape[0], k)
+        else:
+            dist, idx = self._tree.query(q, k=k, workers=-1)
+            dist = np.asarray(dist, dtype=np.float64).reshape(q.shape[0], k)
+            dist_sq, idx = dist * dist, np.asarray(idx, dtype=np.int64).reshape(q.shape[0], k)
+        np.minimum(idx, self.points.shape[0] - 1, out=idx)  # no neighbour found: see query
+        return dist_sq, idx
 
     def spacing(self, sample: int = 256) -> float:
         """Median distance from a stored point to its nearest *other* stored point.

@@ -36,6 +36,7 @@ are built once per level, never per iteration.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -47,7 +48,7 @@ from .fit import Fit, measure_fit
 from .global_search import feature_starts
 from .hypotheses import beyond_guess, covariance_scale_bounds, initial_hypotheses
 from .levels import Pairs, Pyramid, level_motion
-from .points import as_point_set, centroid, check_same_dimension, rms_radius
+from .points import as_point_set, centroid, check_same_dimension, rms_radius, spread
 from .poses import PoseBatch
 from .refine import ModelNormals, Sets, polish, uncertainty_of
 from .result import IterationRecord, LevelReport, RegistrationResult
@@ -55,7 +56,8 @@ from .sampling import downsample, in_spatial_order, level_sizes
 from .similarity import FloatArray, Similarity
 from .solver import ACCELERATE_FROM, ACCELERATE_FROM_TRACKING, Solver, compare_finalists
 from .uncertainty import Uncertainty
-from .verdict import judge, spread
+from .units import Units
+from .verdict import judge
 
 # Most passes a probe of the answer (frisicp_core.ambiguity) takes to settle on the screening
 # level, and the margin of the merit there within which it is run down the levels to be compared.
@@ -91,15 +93,30 @@ def register(
     pairs into wrong answers.
     """
     config = config or RegistrationConfig()
-    result = _register(data, model, config, previous if config.initial is not None else None)
-    if config.initial is None:
-        return result
-    why = "" if result.reliable else result.reason
-    if not why and previous is not None:
-        why = worse_than_track(result, previous)
-    if not why:
-        return result
-    cold = _register(data, model, replace(config, initial=None))
+    # Validated first, so that the units (frisicp_core.units) are those of the points used.
+    data_set = as_point_set(data, "data", drop_nonfinite=config.drop_nonfinite)
+    model_set = as_point_set(model, "model", drop_nonfinite=config.drop_nonfinite)
+    units = Units.of(data_set, model_set)
+    data_set, model_set = units.scaled(data_set, model_set)
+    scaled = units.config(config)
+    # A pose far off (a warm start from clouds in other units) throws points past float64: their
+    # distances are inf (or NaN: inf times a scale that squared to 0), the pose's merit is not
+    # finite and it is dropped, or the result is unreliable. numpy's warnings on the way would
+    # only be noise on a node's stderr.
+    with np.errstate(over="ignore", invalid="ignore"):
+        track = previous if config.initial is not None else None
+        result = units.restore(_register(data_set, model_set, scaled, track))
+        if config.initial is None:
+            return result
+        why = "" if result.reliable else result.reason
+        if not why and previous is not None:
+            why = worse_than_track(result, previous)
+        left = None if config.budget_seconds is None else config.budget_seconds - result.seconds
+        if not why or (left is not None and left <= 0):
+            return result
+        cold = units.restore(
+            _register(data_set, model_set, replace(scaled, initial=None, budget_seconds=left))
+        )
     best = better_of(result, cold)
     return replace(best, seconds=result.seconds + cold.seconds, retried=f"warm start retried cold: {why}")
 
@@ -148,11 +165,11 @@ def _smaller_overlap(result: RegistrationResult) -> float:
 
 
 def _register(
-    data: ArrayLike, model: ArrayLike, config: RegistrationConfig, track: RegistrationResult | None = None
+    data: FloatArray, model: FloatArray, config: RegistrationConfig, track: RegistrationResult | None = None
 ) -> RegistrationResult:
+    """One registration of validated clouds in safe units (see :func:`register`)."""
     start = time.perf_counter()
-    data_set = as_point_set(data, "data", drop_nonfinite=config.drop_nonfinite)
-    model_set = as_point_set(model, "model", drop_nonfinite=config.drop_nonfinite)
+    data_set, model_set = data, model
     check_same_dimension(data_set, model_set)
     data_radius, model_radius = rms_radius(data_set), rms_radius(model_set)
     data_set, model_set = in_spatial_order(data_set, data_radius), in_spatial_order(model_set, model_radius)
@@ -200,7 +217,13 @@ def _register(
             solver, levels[0], finalists, level_motion(config, 0, last)
         )
         reports, first = [report], 1
-        if searching and pairs.backward is not None and data_set.shape[1] == 3 and not _covering(pairs):
+        if (
+            searching
+            and pairs.backward is not None
+            and data_set.shape[1] == 3
+            and not _covering(pairs)
+            and not solver.deadline.passed()
+        ):
             # The clouds do not cover each other: the data may lie anywhere in the model (or the
             # model in the data), at a scale and turn the moments do not tell. Poses from
             # matched local shape (frisicp_core.global_search) join the answer so far.
@@ -216,6 +239,7 @@ def _register(
     # The full sets are solved by point-to-plane steps (frisicp_core.refine) when polishing; ICP
     # runs the levels above them (all of them when the sets are small enough for one level).
     polishing = bidirectional and config.polish
+    # Past the budget nothing more runs: the result is what the last pass had (and says so).
     icp_last = last - 1 if polishing and last > 0 else last
     for index in range(first, icp_last + 1):
         sim, report, pairs = solver.run_level(
@@ -228,7 +252,7 @@ def _register(
         reports.append(report)
 
     competitors: list[Competitor] = []
-    if bidirectional and config.initial is None and config.probe:
+    if bidirectional and config.initial is None and config.probe and not solver.deadline.passed():
         refine = _Refiner(solver, levels, config, icp_last)
         competitors, better = _probe(refine, sim, pairs, data_set, model_set, config, runners_up)
         if better is not None:
@@ -244,6 +268,10 @@ def _register(
     final = levels[last]
     data_centroid = centroid(data_set)
     uncertainty: Uncertainty | None = None
+    if polishing and solver.deadline.passed():
+        polishing = False  # the finest level was not reached: say so (not converged)
+        if last > 0:
+            reports.append(LevelReport(final.data.shape[0], final.model.shape[0], 0, False, rms))
     if polishing:
         assert final.data_tree is not None
         sets = Sets(
@@ -314,6 +342,9 @@ def _register(
         model_diagonal=float(np.linalg.norm(model_set.max(axis=0) - model_set.min(axis=0))),
     )
     reliable, reason = verdict.reliable, verdict.reason
+    budget = solver.deadline.reason
+    if budget:
+        reliable, reason = False, "; ".join(filter(None, (budget, reason)))
     if config.guess is not None and config.initial is None:
         outside = beyond_guess(config.guess, sim, model_radius)
         if outside:
@@ -349,12 +380,15 @@ class _Refiner:
     config: RegistrationConfig
     last: int
 
-    def settle_rough(self, starts: list[Similarity]) -> tuple[PoseBatch, FloatArray]:
+    def settle_rough(
+        self, starts: list[Similarity], returned: Callable[[Similarity], bool]
+    ) -> tuple[PoseBatch, FloatArray]:
         """Every start settled on the thinned screening level (plain steps, batched): cheap, and
-        good enough to nominate candidates for :meth:`down`."""
+        good enough to nominate candidates for :meth:`down`. A start that has ``returned`` (to
+        the answer) is settled: its basin is the answer's."""
         tolerance = self.config.criteria.coarse_relative_motion * self.solver.model_radius
         level = self.levels.screening_level()
-        return self.solver.settle(level, PoseBatch.of(starts), tolerance, _PROBE_PASSES)
+        return self.solver.settle(level, PoseBatch.of(starts), tolerance, _PROBE_PASSES, returned)
 
     def down(self, sim: Similarity) -> tuple[Similarity, Pairs]:
         """``sim`` run down the levels as the answer was; its final pairs (the merit to compare)."""
@@ -395,7 +429,9 @@ def _probe(
     centre = centroid(data)
     diagonal = float(np.linalg.norm(model.max(axis=0) - model.min(axis=0)))
     starts = [sim, *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data))]
-    poses, merits = refine.settle_rough(starts)
+    poses, merits = refine.settle_rough(
+        starts, lambda pose: separation(pose, sim, centre, diagonal, config.tolerance) <= 1.0
+    )
     settled = poses[0]
     ranked = sorted(
         (float(merits[k]) / float(merits[0]), k)

@@ -10,6 +10,7 @@ from collections.abc import Callable
 import numpy as np
 
 from .acceleration import AndersonAccelerator
+from .budget import Deadline
 from .config import Method, RegistrationConfig
 from .estimate import PairPart, estimate_similarities
 from .levels import Level, Pairs, rows_of
@@ -110,6 +111,7 @@ class Solver:
         self.scale_bounds = scale_bounds
         self.model_radius = model_radius
         self.start = start
+        self.deadline = Deadline(config.budget_seconds, start)
         self.history: list[IterationRecord] = []
 
     def correspond(self, level: Level, poses: PoseBatch) -> Pairs:
@@ -224,6 +226,8 @@ class Solver:
         )
         previous = np.full(len(poses), np.inf)  # each hypothesis's merit one pass earlier
         for iteration in range(1, _SCREENING_PASSES + 1):
+            if self.deadline.passed():
+                break  # the hypotheses as they stand (below)
             merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
             stepped, valid = self.step(level, pairs)
             stepped = poses.where(valid, stepped)
@@ -256,16 +260,22 @@ class Solver:
         return _finalists(minima, level, tolerance)
 
     def settle(
-        self, level: Level, poses: PoseBatch, tolerance: float, passes: int
+        self,
+        level: Level,
+        poses: PoseBatch,
+        tolerance: float,
+        passes: int,
+        done: Callable[[Similarity], bool] | None = None,
     ) -> tuple[PoseBatch, FloatArray]:
         """Plain ICP steps for every pose of the batch until each moves the data by less than
-        ``tolerance`` (at most ``passes``); the poses reached and their merits."""
+        ``tolerance`` (at most ``passes``), or ``done`` says its pose needs no more; the poses
+        reached and their merits."""
         pairs = self.correspond(level, poses)
         merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
         active = np.flatnonzero(np.isfinite(merit))
         pairs = rows_of(pairs, active)  # the pairs of the active poses, in their order
         for _ in range(passes):
-            if active.size == 0:
+            if active.size == 0 or self.deadline.passed():
                 break
             current = poses.take(active)
             stepped, valid = self.step(level, pairs)
@@ -273,7 +283,10 @@ class Solver:
             poses = poses.assign(active, current.where(valid, stepped))
             pairs = self.correspond(level, poses.take(active))
             merit[active] = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
-            keep = np.flatnonzero(valid & (moved > tolerance))
+            going = valid & (moved > tolerance)
+            if done is not None:
+                going &= [not done(poses[int(k)]) for k in active]
+            keep = np.flatnonzero(going)
             pairs, active = rows_of(pairs, keep), active[keep]
         return poses, merit
 
@@ -342,6 +355,9 @@ class Solver:
         converged = False
         iterations = 0
         for iterations in range(1, criteria.max_iterations + 1):
+            if self.deadline.passed():
+                iterations -= 1  # not run; not converged: the result will say "budget exceeded"
+                break
             self._record(index, iterations, pairs)
             stepped, valid = self.step(level, pairs)
             if not valid[0]:

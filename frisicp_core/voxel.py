@@ -68,7 +68,8 @@ def _first_in_cells(cells: list[np.ndarray]) -> np.ndarray:
         return np.ones(n, dtype=bool)
     low = [float(column.min()) for column in cells]
     spans = [float(column.max()) - start + 1.0 for column, start in zip(cells, low, strict=True)]
-    total = float(np.prod(spans))
+    with np.errstate(over="ignore"):  # a grid past float64 (tiny voxels): inf, the lexsort below
+        total = float(np.prod(spans))
     if total >= _INT64_KEYS:
         return _first_by_lexsort(cells)
     weights = np.append(np.cumprod(np.array(spans[:0:-1], dtype=np.int64))[::-1], 1)

@@ -1,14 +1,18 @@
 """Reading bags without ROS: rosbag2 folders, bare ``.db3``/``.mcap`` files and ROS 1 ``.bag``.
 
-Everything goes through rosbags' ``AnyReader``; this module only turns the many ways a bag can
-be unreadable into one ``BagError`` with a sentence a user can act on, and iterates the messages
-of chosen topics in bag order with a deserialization failure reported per message instead of
-ending the whole read.
+MCAP storage goes through the ``mcap`` package's reader, which checks every chunk's CRC
+(``frisicp_ros.bag.mcap_bag``), everything else through rosbags' ``AnyReader``, and a file cut
+off part-way through ``frisicp_ros.bag.salvage`` (imported only then). This module turns the many
+ways a bag can be unreadable into one ``BagError`` with a sentence a user can act on, and
+iterates the messages of chosen topics in bag order with a deserialization failure reported per
+message instead of ending the whole read.
 """
 
 from __future__ import annotations
 
 import contextlib
+import functools
+import re
 from collections.abc import Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -18,7 +22,7 @@ from typing import Any, Protocol
 from rosbags.highlevel import AnyReader
 from rosbags.typesys import Stores, get_typestore
 
-from frisicp_ros.bag.salvage import SalvagedBag, salvage
+from frisicp_ros.bag.mcap_bag import McapBag
 
 POINTCLOUD2 = "sensor_msgs/msg/PointCloud2"
 # ROS 1 bags name the same type without "/msg/"; AnyReader keeps the bag's spelling.
@@ -63,6 +67,8 @@ def bag_paths(path: Path) -> list[Path]:
             hint = f"; open one of its storage files instead: {', '.join(storage)}" if storage else ""
             raise BagError(f"{path}: a rosbag2 folder needs a metadata.yaml, and this one has none{hint}")
         return [path]
+    if not path.is_file():  # opening a FIFO would wait for a writer forever
+        raise BagError(f"{path}: not a regular file (a FIFO, socket or device); give a bag file or folder")
     if path.suffix not in BAG_SUFFIXES:
         raise BagError(f"{path}: not a bag (expected a rosbag2 folder or a {', '.join(BAG_SUFFIXES)} file)")
     try:
@@ -109,16 +115,24 @@ def open_bag(path: str | Path) -> Iterator[Bag]:
     """
     path = Path(path)
     paths = bag_paths(path)
+    mcap = mcap_storage(path)
     reader: Bag
     try:
-        reader = AnyReader(paths, default_typestore=get_typestore(Stores.ROS2_JAZZY))
-        reader.open()
+        if mcap is not None:
+            reader = McapBag(mcap)
+        else:
+            reader = AnyReader(paths, default_typestore=get_typestore(Stores.ROS2_JAZZY))
+            reader.open()
     except Exception as err:  # noqa: BLE001 - sqlite3, mcap, yaml, struct, lz4... all mean "unreadable"
+        from frisicp_ros.bag.salvage import salvage  # only for a damaged file
+
         salvaged = salvage(path)
         if salvaged is None:
             raise BagError(f"{path}: cannot open the bag ({describe(err)}){repair_hint(err)}") from None
         reader = salvaged
     try:
+        if reader.message_count == 0:
+            raise BagError(f"{path}: the bag holds no messages")
         yield reader
     finally:
         # Closing a corrupt file may fail again; there is nothing left to save.
@@ -126,12 +140,20 @@ def open_bag(path: str | Path) -> Iterator[Bag]:
             reader.close()
 
 
+def mcap_storage(path: Path) -> Path | None:
+    """The MCAP file to read with mcap's reader: a ``.mcap`` file, or a rosbag2 folder's storage
+    file when it has one and that is MCAP (several split files: rosbags' reader, unchecked)."""
+    if not path.is_dir():
+        return path if path.suffix == ".mcap" else None
+    storage = [p for p in path.iterdir() if p.suffix in (".mcap", ".db3")]
+    return storage[0] if len(storage) == 1 and storage[0].suffix == ".mcap" else None
+
+
 def damage_of(reader: Bag) -> str | None:
     """What made the bag unreadable past some point (None: an intact bag)."""
-    if isinstance(reader, SalvagedBag):
-        return (
-            f"the bag is damaged: {reader.damage}; its {reader.message_count} messages before that were read"
-        )
+    damage = getattr(reader, "damage", None)  # a SalvagedBag's
+    if damage:
+        return f"the bag is damaged: {damage}; its {reader.message_count} messages before that were read"
     return None
 
 
@@ -156,6 +178,24 @@ def require_pointcloud2_topic(reader: Bag, topic: str) -> None:
         raise BagError(f"topic {topic} is not in the bag; its PointCloud2 topics: {listing}")
     if not topics[topic].is_pointcloud2:
         raise BagError(f"topic {topic} carries {topics[topic].msgtype}, not {POINTCLOUD2}")
+    if topics[topic].count == 0:
+        raise BagError(f"topic {topic} has no messages in the bag")
+    for connection in reader.connections:
+        digest = getattr(connection, "digest", "")
+        if connection.topic == topic and _ROS1_MD5.fullmatch(digest) and digest != _pointcloud2_md5():
+            raise BagError(
+                f"topic {topic}: its ROS 1 connection declares md5sum {digest}, but"
+                f" sensor_msgs/PointCloud2 has {_pointcloud2_md5()}: another message definition under"
+                " that name, or a damaged connection header"
+            )
+
+
+_ROS1_MD5 = re.compile("[0-9a-f]{32}")  # rosbag2 connections carry "" or a RIHS01_ type hash
+
+
+@functools.cache
+def _pointcloud2_md5() -> str:
+    return get_typestore(Stores.ROS1_NOETIC).generate_msgdef(POINTCLOUD2)[1]
 
 
 def read_messages(reader: Bag, topics: Sequence[str]) -> Iterator[BagMessage]:

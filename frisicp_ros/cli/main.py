@@ -9,6 +9,7 @@ heavy dependencies (rosbags, the benchmark) inside ``run``, so ``frisicp --help`
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from collections.abc import Sequence
 
@@ -43,6 +44,11 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"frisicp {args.command}: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:
+        # The reader of stdout left (`frisicp register ... | head -3`): nothing more to say to it,
+        # and Python's own flush at exit must not fail again (it would print a traceback).
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return 1
 
 
 if __name__ == "__main__":

@@ -42,7 +42,8 @@ def _help(row: Option) -> str:
     default = row.default if row.default != "" else '""'
     if row.kind is bool:
         default = "on" if row.default else "off"
-    return f"{row.description} (default: {default})".replace("%", "%%")
+    rule = f"; {row.rule.text}" if row.rule is not None else ""
+    return f"{row.description} (default: {default}{rule})".replace("%", "%%")
 
 
 def given_values(args: argparse.Namespace, surface: Surface) -> dict[str, Value]:

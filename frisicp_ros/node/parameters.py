@@ -37,6 +37,8 @@ def descriptor(option: Option) -> ParameterDescriptor:
         desc.floating_point_range = [FloatingPointRange(from_value=low_f, to_value=high_f, step=0.0)]
     if option.choices:
         desc.additional_constraints = "one of: " + ", ".join(option.choices)
+    if option.rule is not None:
+        desc.additional_constraints = option.rule.text
     return desc
 
 

@@ -10,8 +10,10 @@ or choices, description and the surfaces it appears on. Generated from it:
   (``frisicp_ros.cli.options``).
 
 Algorithm rows name a field of :class:`~frisicp_core.RegistrationConfig` (``core``; dotted for
-the fields of ``criteria`` and ``tolerance``) and take their type, default and enum choices from ``RegistrationConfig()``, so
-adding or changing a core option is one row here. ROS parameters have no null: a core ``None``
+the fields of ``criteria`` and ``tolerance``) and take their type, default and enum choices from
+``RegistrationConfig()``, so adding or changing a core option is one row here. One exception:
+``budget_seconds`` is a stream option with a stream default (5 s; the core's is unbounded, for
+whole clouds). ROS parameters have no null: a core ``None``
 is written as the type's zero (0, 0.0 or ""), and the row's ``zero_means`` says what that stands
 for ("off", "automatic"). Values are always in that parameter form (bool, int, float, str);
 :func:`settings_from` validates them and builds the typed :class:`PipelineSettings`.
@@ -22,7 +24,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import textwrap
-from collections.abc import Iterable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -56,6 +58,15 @@ class Group(str, enum.Enum):
 
 
 @dataclass(frozen=True)
+class Rule:
+    """A check beyond type, range and choices: ``text`` is what it demands (said in the error, the
+    node's parameter descriptor, the YAML comment and ``--help``), ``holds`` decides."""
+
+    text: str
+    holds: Callable[[Any], bool]
+
+
+@dataclass(frozen=True)
 class Option:
     """One row of the table. Build rows with :func:`option` or :func:`core_option`."""
 
@@ -72,6 +83,7 @@ class Option:
     zero_means: str | None = None  # what 0 / 0.0 / "" stands for: the core's None
     flags: tuple[str, ...] = ()  # command-line spellings; default --name-with-dashes
     needs: tuple[str, Value] | None = None  # CLI: only meaningful with that option at that value
+    rule: Rule | None = None
 
     @property
     def cli_flags(self) -> tuple[str, ...]:
@@ -89,6 +101,8 @@ class Option:
             low, high = self.bounds
             if not low <= value <= high:
                 raise ValueError(f"{self.name} must be in [{_number(low)}, {_number(high)}], got {value!r}")
+        if self.rule is not None and not self.rule.holds(value):
+            raise ValueError(f"{self.name} must be {self.rule.text}, got {_shown(value)}")
         return value
 
     def to_core(self, value: Value) -> object:
@@ -134,15 +148,20 @@ def core_option(
     core: str | None = None,
     surfaces: Surface = EVERYWHERE,
     kind: type | None = None,
+    default: Value | None = None,
     **details: Any,
 ) -> Option:
     """A row backed by a RegistrationConfig field (``core``, default: ``name``).
 
     Type, default and enum choices come from ``RegistrationConfig()``. A field whose default is
-    None needs ``kind`` and ``zero_means``: the parameter's zero stands for None.
+    None needs ``kind`` and ``zero_means``: the parameter's zero stands for None. ``default``
+    replaces the core's for a stream-only row (``budget_seconds``: a stream must keep up, while
+    a library call runs to its end).
     """
     path = core or name
-    default = _core_default(path)
+    if default is not None and surfaces & Surface.REGISTER:
+        raise TypeError(f"{name}: frisicp register takes the core's defaults; a row's own is for streams")
+    default = _core_default(path) if default is None else default
     choices = details.pop("choices", None)
     if isinstance(default, enum.Enum):
         choices = choices or tuple(str(member.value) for member in type(default))
@@ -175,6 +194,28 @@ def _core_default(path: str | None) -> Any:
 def _number(value: float) -> str:
     return str(int(value)) if float(value).is_integer() else repr(value)
 
+
+def _shown(value: Value) -> str:
+    """A value for an error message: a 5,000-character string must not become the message."""
+    text = repr(value)
+    return text if len(text) <= 60 else f"{text[:50]}... ({len(str(value))} characters)"
+
+
+# Voxels finer than this (in the clouds' units; a micrometre in metres) keep every point of any
+# real cloud and only cost a sort (70 ms per 100k points); 1e-300 made the grid overflow float64.
+SMALLEST_VOXEL = 1e-6
+VOXEL_RULE = Rule(f"0 (off) or at least {SMALLEST_VOXEL:g}", lambda size: size == 0 or size >= SMALLEST_VOXEL)
+# A tf2 frame id: no length limit there, but a 5,000-character one can only be a mistake (after
+# it every pair was rejected as a frame mismatch); spaces and control characters likewise.
+LONGEST_FRAME = 255
+FRAME_RULE = Rule(
+    f"a frame id of at most {LONGEST_FRAME} printable characters without spaces, or empty",
+    lambda frame: len(frame) <= LONGEST_FRAME and frame.isprintable() and not any(c.isspace() for c in frame),
+)
+
+
+# The registration budget of the node and frisicp bag (the core's default is unbounded).
+STREAM_BUDGET_SECONDS = 5.0
 
 MODEL_QOS_CHOICES = ("sensor_data", "reliable", "transient_local")
 DATA_QOS_CHOICES = ("sensor_data", "reliable")
@@ -278,6 +319,7 @@ OPTIONS: tuple[Option, ...] = (
         "edge of a voxel grid (in the clouds' units, m for most sensors) applied to both clouds"
         " before max_points: the first point of each occupied voxel is kept; 0 = off",
         bounds=(0.0, 1e9),
+        rule=VOXEL_RULE,
     ),
     stream_option(
         "warm_start", True, "start each registration from the previous converged estimate (tracking)"
@@ -294,9 +336,14 @@ OPTIONS: tuple[Option, ...] = (
         "",
         "child frame of the /tf transforms (node with publish_tf, frisicp bag's result bag): the data"
         " frame scaled by s; empty = '<data frame>_scaled'",
+        rule=FRAME_RULE,
     ),
-    stream_option("model_frame", "", "expected frame id of the model clouds; empty = accept any"),
-    stream_option("data_frame", "", "expected frame id of the data clouds; empty = accept any"),
+    stream_option(
+        "model_frame", "", "expected frame id of the model clouds; empty = accept any", rule=FRAME_RULE
+    ),
+    stream_option(
+        "data_frame", "", "expected frame id of the data clouds; empty = accept any", rule=FRAME_RULE
+    ),
     stream_option(
         "publish_aligned",
         True,
@@ -407,6 +454,17 @@ OPTIONS: tuple[Option, ...] = (
     ),
     core_option("seed", "seed of the random down-sampling", bounds=(0, 2**31 - 1)),
     core_option("backend", "KD-tree library (auto: pykdtree when installed)", choices=BACKENDS),
+    core_option(
+        "budget_seconds",
+        "wall-clock seconds one registration may take: past it the iterations stop and the result"
+        ' is unreliable ("budget exceeded"), so no cloud holds the worker for long (a pair of'
+        " 10000-point clouds takes ~20-45 ms, see max_points); 0 = unbounded",
+        kind=float,
+        zero_means="unbounded",
+        bounds=(0.0, 86400.0),
+        surfaces=STREAM,
+        default=STREAM_BUDGET_SECONDS,
+    ),
     core_option(
         "drop_nonfinite",
         "drop NaN/Inf points instead of failing (clouds in the node and bag mode always drop them)",
@@ -577,6 +635,8 @@ def _yaml_comment(row: Option) -> str:
         notes.append("one of " + " | ".join(row.choices))
     if row.bounds is not None:
         notes.append(f"range [{_number(row.bounds[0])}, {_number(row.bounds[1])}]")
+    if row.rule is not None:
+        notes.append(row.rule.text)
     if row.read_only:
         notes.append("read-only")
     return row.description + (f" ({'; '.join(notes)})" if notes else "")

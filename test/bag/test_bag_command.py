@@ -418,6 +418,17 @@ def write_bag_with_corrupt_message(path: Path, scenario: Scenario, corrupt_at: i
     return path
 
 
+def test_budget_seconds_bounds_each_registration(capsys, bags):
+    code, out, err = run_cli(
+        capsys, *bag_args(bags["rosbags-mcap"], "--no-progress", "--budget-seconds", "1e-9")
+    )
+    assert code == 0, err  # read to its end; each pair marked
+    records = read_jsonl(out)
+    assert len(records) == 4 and all(r["ok"] is False for r in records)
+    assert all(r["reason"].startswith("budget exceeded: stopped after") for r in records)
+    assert "pairs 4 (rejected 0, unreliable 4)" in err
+
+
 def test_corrupt_message_mid_bag_keeps_earlier_results_and_says_where(capsys, scenario, tmp_path):
     bag = write_bag_with_corrupt_message(tmp_path / "corrupt", scenario, corrupt_at=2)
     out_bag = tmp_path / "partial_results"
@@ -446,7 +457,7 @@ def test_damage_found_while_reading_keeps_earlier_results_and_says_where(capsys,
     bag.write_bytes(raw)
     code, out, err = run_cli(capsys, *bag_args(bag, "--no-progress"))
     assert code == 1 and "Traceback" not in err
-    assert "the bag is damaged after message" in err and "Chunk checksum mismatch" in err, err
+    assert "the bag is damaged after message" in err and "crc validation failed in Chunk" in err, err
     records = read_jsonl(out)
     assert 1 <= len(records) < 4 and f"{len(records)} results kept in stdout" in err
     for record in records:

@@ -24,6 +24,7 @@ from support.bags import (
     MODEL_TOPIC,
     CloudRecord,
     data_cloud,
+    one_model_then_data,
     truth_for,
     write_rosbag2,
 )
@@ -39,13 +40,7 @@ TOPICS = ("--model-topic", MODEL_TOPIC, "--data-topic", DATA_TOPIC)
 @pytest.fixture(scope="module")
 def long_bag(tmp_path_factory) -> Path:
     """200 pairs: far more than can finish before the signals."""
-    model = bumpy_surface(3000, seed=1)
-    records = [CloudRecord(MODEL_TOPIC, 10**9, 10**9, MODEL_FRAME, model)]
-    for k in range(200):
-        stamp = 2 * 10**9 + k * 10**8
-        records.append(
-            CloudRecord(DATA_TOPIC, stamp, stamp, DATA_FRAME, data_cloud(model, truth_for(k % 4), k))
-        )
+    records, _ = one_model_then_data(200, 3000)
     return write_rosbag2(tmp_path_factory.mktemp("signals") / "long", records, "mcap")
 
 
@@ -86,13 +81,14 @@ def assert_group_gone(pgid: int) -> None:
     ("jobs", "signals", "code"),
     [
         ("1", [INT], 130),
+        ("2", [INT], 130),  # ignored in 2 of 6 tries: it came while a chunk was submitted (test_jobs)
         ("1", [INT, INT], 130),  # used to exit -2 with a traceback
         ("2", [INT, INT], 130),  # used to hang joining idle workers (4 of 5 tries)
         ("2", [INT, INT, INT], 130),  # used to orphan the workers
         ("1", [TERM], 143),  # used to leave DIR.partial-PID without metadata
         ("2", [TERM, TERM, INT], 143),
     ],
-    ids=["int-1", "int-int-1", "int-int-2", "int-int-int-2", "term-1", "term-term-int-2"],
+    ids=["int-1", "int-2", "int-int-1", "int-int-2", "int-int-int-2", "term-1", "term-term-int-2"],
 )
 def test_signals_stop_cleanly_keep_every_result_and_finish_the_result_bag(
     long_bag, tmp_path, jobs, signals, code

@@ -11,20 +11,15 @@ import json
 
 import pytest
 from support.bags import (
-    DATA_FRAME,
     DATA_TOPIC,
-    MODEL_FRAME,
     MODEL_TOPIC,
-    CloudRecord,
     assert_matches_truth,
-    data_cloud,
-    truth_for,
+    one_model_then_data,
     write_mcap_ros2,
     write_ros1_bag,
     write_rosbag2,
 )
 
-from frisicp_core import bumpy_surface
 from frisicp_ros.cli import main as cli
 
 PAIRS = 20
@@ -34,13 +29,7 @@ PAIRS = 20
 def recordings(tmp_path_factory):
     """One model, then 20 data clouds, in every format; truth by data bag time."""
     root = tmp_path_factory.mktemp("damaged")
-    model = bumpy_surface(600, seed=1)
-    records = [CloudRecord(MODEL_TOPIC, 10**9, 10**9, MODEL_FRAME, model)]
-    truth = {}
-    for k in range(PAIRS):
-        stamp = 2 * 10**9 + k * 10**8
-        truth[stamp] = truth_for(k % 4)
-        records.append(CloudRecord(DATA_TOPIC, stamp, stamp, DATA_FRAME, data_cloud(model, truth[stamp], k)))
+    records, truth = one_model_then_data(PAIRS, 600)
     files = {
         "rosbag2-sqlite3": write_rosbag2(root / "sqlite", records, "sqlite3") / "sqlite.db3",
         "rosbag2-mcap": write_rosbag2(root / "mcap", records, "mcap") / "mcap.mcap",
@@ -106,3 +95,34 @@ def test_a_file_with_nothing_readable_is_still_refused_with_the_reason(capsys, r
     code = cli.main(["bag-info", str(bag)])
     captured = capsys.readouterr()
     assert code == 2 and "cannot open the bag" in captured.err and str(bag) in captured.err
+
+
+def whole_rows_before(raw: bytes, blobs: list[bytes], pages: int, page_size: int) -> int:
+    """Messages whose every byte lies in the first ``pages`` pages: the page of the blob's start
+    (its row's cell) and of its end (the last overflow page), found by content."""
+    spans = [(raw.find(b[:64]) // page_size, (raw.find(b[-64:]) + 63) // page_size) for b in blobs]
+    return sum(max(span) < pages for span in spans)
+
+
+def test_a_sqlite_bag_cut_anywhere_keeps_every_message_that_lies_before_the_cut(recordings, tmp_path):
+    """Python's sqlite3 cursor steps to the next row before returning one and drops it when that
+    step fails: the salvage kept one message fewer than lay before the cut, at every cut, and a
+    cut inside the first pages raised sqlite3.DatabaseError out of it."""
+    import sqlite3
+
+    from frisicp_ros.bag.salvage import salvage
+
+    source = recordings[0]["rosbag2-sqlite3"]
+    raw = source.read_bytes()
+    page_size = int.from_bytes(raw[16:18], "big")
+    with sqlite3.connect(source) as database:
+        blobs = [bytes(row[0]) for row in database.execute("SELECT data FROM messages ORDER BY id")]
+    checked = 0
+    for pages in range(1, len(raw) // page_size):
+        bag = tmp_path / "cut.db3"
+        bag.write_bytes(raw[: pages * page_size])
+        salvaged = salvage(bag)
+        expected = whole_rows_before(raw, blobs, pages, page_size)
+        assert (salvaged.message_count if salvaged else 0) == expected, f"cut after page {pages}"
+        checked += expected > 0
+    assert checked > 20

@@ -1,6 +1,7 @@
 """`frisicp register DATA MODEL`: every supported file format, JSON output, clean errors."""
 
 import json
+import os
 import subprocess
 from pathlib import Path
 
@@ -83,7 +84,7 @@ def test_register_human_output_and_methods(tmp_path):
             b"ply\nformat ascii 1.0\nelement vertex 5\nproperty float x\nend_header\n1\n",
             "cannot read it as PLY",
         ),
-        (b"", "cannot read"),
+        (b"", "the file is empty"),
     ],
 )
 def test_bad_files_exit_2_with_one_line_and_no_traceback(tmp_path, content, message):
@@ -93,6 +94,55 @@ def test_bad_files_exit_2_with_one_line_and_no_traceback(tmp_path, content, mess
     done = run("register", str(path), str(path))
     assert done.returncode == 2
     assert message in done.stderr and "Traceback" not in done.stderr
+
+
+def test_directories_fifos_and_empty_files_are_named_for_what_they_are(tmp_path):
+    """A FIFO or a directory was "no such file"; an empty .pcd printed pydantic's 19-line error."""
+    os.mkfifo(tmp_path / "fifo.xyz")
+    (tmp_path / "folder.ply").mkdir()
+    (tmp_path / "empty.pcd").write_bytes(b"")
+    (tmp_path / "junk.pcd").write_bytes(b"not a header\n")
+    (tmp_path / "header_only.xyz").write_text("x y z\n")
+    np.save(tmp_path / "complex.npy", MODEL * 1j)
+    for name, message in (
+        ("fifo.xyz", "not a regular file (a FIFO, socket or device)"),
+        ("folder.ply", "is a directory, not a point cloud file"),
+        ("empty.pcd", "the file is empty (0 bytes)"),
+        ("junk.pcd", "cannot read it as PCD (the header is incomplete or invalid: fields, size,"),
+        ("header_only.xyz", "no points (a header line and no rows)"),
+        ("complex.npy", "holds complex numbers (complex128), not coordinates"),
+    ):
+        done = run("register", str(tmp_path / name), str(tmp_path / name))
+        assert done.returncode == 2 and message in done.stderr, (name, done.stderr)
+        assert done.stderr.count("\n") == 1, done.stderr
+
+
+def test_data_in_large_units_registers(tmp_path):
+    """The data in units 1e80 times the model's ended in `IndexError: index 4294967295` and exit 1."""
+    np.save(tmp_path / "data.npy", DATA * 1e80)
+    np.save(tmp_path / "model.npy", MODEL)
+    done = run("register", str(tmp_path / "data.npy"), str(tmp_path / "model.npy"), "--json")
+    assert done.returncode == 0, done.stderr
+    out = json.loads(done.stdout)
+    assert out["reliable"] and out["scale"] == pytest.approx(2.5e-80, rel=1e-6)
+    np.testing.assert_allclose(out["translation"], TRUTH.translation, atol=1e-5)
+
+
+def test_a_closed_stdout_ends_quietly(tmp_path):
+    """`frisicp register ... | head -1` printed a BrokenPipeError traceback."""
+    np.save(tmp_path / "data.npy", DATA)
+    np.save(tmp_path / "model.npy", MODEL)
+    reader, writer = os.pipe()
+    os.close(reader)  # nobody will read: the first write fails
+    done = subprocess.run(
+        [FRISICP, "register", str(tmp_path / "data.npy"), str(tmp_path / "model.npy")],
+        stdout=writer,
+        stderr=subprocess.PIPE,
+        text=True,
+        timeout=120,
+    )
+    os.close(writer)
+    assert done.returncode == 1 and done.stderr == ""
 
 
 def test_nan_points_are_refused_unless_dropping_was_asked_for(tmp_path):

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from frisicp_core import Similarity, bumpy_surface, judge, register
-from frisicp_core.verdict import spread
+from frisicp_core.points import spread
 
 GOOD = dict(
     converged=True, rms=0.01, overlap_forward=0.9, overlap_backward=0.4, moment_scale=2.0, model_radius=1.0
@@ -47,11 +47,13 @@ def test_spread_tells_coordinates_from_garbage_numbers():
 
 
 def test_a_garbage_model_never_yields_a_reliable_result():
-    """Valid data against random bytes read as floats: whatever the fit, it is not believable."""
+    """Valid data against random bytes read as floats: refused before the search (the spread
+    test up front; it used to give an unreliable result after a long search)."""
     rng = np.random.default_rng(0)
     data = bumpy_surface(500)
     for _ in range(10):
         with np.errstate(invalid="ignore"):
             garbage = np.frombuffer(rng.bytes(500 * 12), "<f4").reshape(-1, 3).astype(np.float64)
         garbage = garbage[np.isfinite(garbage).all(axis=1)]
-        assert not register(data, garbage).reliable
+        with pytest.raises(ValueError, match="model: not the points of one scene"):
+            register(data, garbage)

@@ -112,3 +112,10 @@ def test_read_cloud_with_voxels_rejects_empty_and_all_nan_clouds():
         read_cloud(cloud(np.full((10, 3), np.nan)), voxel_size=0.1)
     with pytest.raises(CloudError, match="empty cloud"):
         read_cloud(cloud(np.empty((0, 3))), voxel_size=0.1)
+
+
+@pytest.mark.filterwarnings("error::RuntimeWarning")
+def test_a_grid_too_fine_for_float64_keeps_every_point_without_a_warning():
+    """voxel_size 1e-300 (now refused as a parameter) printed numpy's overflow warning per cloud."""
+    points = np.random.default_rng(1).normal(size=(500, 3))
+    assert voxel_filter(points, 1e-300) is points

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import fields
+import re
+from dataclasses import fields, replace
 from pathlib import Path
 
 import pytest
@@ -53,6 +54,29 @@ def test_settings_from_rejects_with_the_reason_and_accepts_valid_values():
     assert settings_from({**values, "dims": 2, "pairing": "synchronized"}).dims == 2
 
 
+@pytest.mark.parametrize(
+    ("name", "value", "message"),
+    [
+        # The grid overflowed float64 and each cloud cost a sort and a RuntimeWarning.
+        ("voxel_size", 1e-300, "voxel_size must be 0 (off) or at least 1e-06, got 1e-300"),
+        # Accepted, after which every pair was rejected as a frame mismatch.
+        ("model_frame", "m" * 5000, "model_frame must be a frame id of at most 255 printable"),
+        ("data_frame", "base link", "data_frame must be a frame id of at most 255 printable"),
+        ("data_frame", "lidar\n", "data_frame must be a frame id"),
+    ],
+)
+def test_harmful_values_are_refused_with_the_rule_they_break(name, value, message):
+    with pytest.raises(ValueError, match=re.escape(message)) as refused:
+        settings_from({name: value})
+    assert len(str(refused.value)) < 200  # a 5,000-character value is not repeated in full
+    rule = OPTIONS_BY_NAME[name].rule
+    assert (
+        rule is not None and parameters.descriptor(OPTIONS_BY_NAME[name]).additional_constraints == rule.text
+    )
+    for fine in (0.0, 1e-6, 0.05) if name == "voxel_size" else ("", "map", "f" * 255, "robot_1/lidar"):
+        assert getattr(settings_from({name: fine}), name) == fine
+
+
 def test_descriptors_carry_descriptions_and_ranges():
     overlap = parameters.descriptor(OPTIONS_BY_NAME["overlap"])
     assert overlap.description and overlap.floating_point_range[0].to_value == 1.0
@@ -69,7 +93,10 @@ def test_every_core_option_is_an_option_with_the_core_default():
     core |= {f"{owner}.{f.name}" for owner, kind in nested.items() for f in fields(kind)}
     backed = {o.core for o in settings.OPTIONS if o.core}
     assert core == backed, sorted(core ^ backed)
-    assert PipelineSettings.create().registration == RegistrationConfig()  # same defaults as the core
+    # The core's defaults, but for the stream's own budget (a library call runs to its end).
+    stream_default = PipelineSettings.create().registration
+    assert stream_default == replace(RegistrationConfig(), budget_seconds=settings.STREAM_BUDGET_SECONDS)
+    assert RegistrationConfig().budget_seconds is None and settings.STREAM_BUDGET_SECONDS == 5.0
     assert OPTIONS_BY_NAME["backend"].choices == BACKENDS  # the core's list, not a copy
 
 

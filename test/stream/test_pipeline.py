@@ -171,6 +171,21 @@ def test_pipeline_rejects_bad_input_with_reasons_and_recovers():
     assert isinstance(pipeline.process(model_msg, data_msg), Registered)
 
 
+def test_clouds_in_large_units_register_in_the_node_and_the_bag_mode_alike():
+    """The data in units 1e80 times the model's (float64 fields) was rejected as "unexpected
+    IndexError" here and crashed `frisicp register`; all three now register it."""
+    from frisicp_ros.stream.pointcloud2 import FLOAT64
+
+    data = bumpy_surface(1500, seed=3)
+    model_msg = cloud(TRUTH.apply(data), "map", 10)
+    types = rosbags_message_types()
+    data_msg = types.point_cloud(points_to_parts(data * 1e80, datatype=FLOAT64), types.header(10, "lidar"))
+    outcome = RegistrationPipeline(PipelineSettings.create(max_points=0)).process(model_msg, data_msg)
+    assert isinstance(outcome, Registered) and outcome.reliable, outcome
+    assert outcome.result.similarity.scale == pytest.approx(TRUTH.scale * 1e-80, rel=1e-9)
+    np.testing.assert_allclose(outcome.result.similarity.translation, TRUTH.translation, atol=1e-9)
+
+
 def rejected_input(outcome: object) -> str:
     assert isinstance(outcome, Rejected), outcome
     return outcome.input

@@ -109,3 +109,19 @@ def test_outputs_copy_the_data_stamp_as_received_even_when_it_is_not_normalised(
     for message in build_outputs(outcome, data, TYPES, tuple(OUTPUT_TOPICS)).values():
         if hasattr(message, "header"):
             assert (message.header.stamp.sec, message.header.stamp.nanosec) == stamp
+
+
+def test_a_pair_past_the_registration_budget_is_unreliable_and_clears_the_warm_start():
+    """budget_seconds (node parameter, frisicp bag --budget-seconds): no cloud holds the worker
+    longer; the result says why it is not believed and is not the next warm start."""
+    pipeline = RegistrationPipeline(PipelineSettings.create())
+    assert pipeline.settings.registration.budget_seconds == 5.0  # the stream's default
+    assert_correct(pipeline.process(MODEL, GOOD))
+    pipeline.update_settings(pipeline.settings.updated(budget_seconds=1e-9))
+    outcome = pipeline.process(MODEL, GOOD)
+    assert isinstance(outcome, Registered) and not outcome.reliable
+    assert outcome.reason.startswith("budget exceeded: stopped after")
+    assert pipeline.previous is None
+    pipeline.update_settings(pipeline.settings.updated(budget_seconds=0.0))  # 0 = unbounded
+    assert pipeline.settings.registration.budget_seconds is None
+    assert_correct(pipeline.process(MODEL, GOOD))

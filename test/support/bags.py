@@ -98,6 +98,19 @@ def standard_scenario(points: int = 1500) -> Scenario:
     return scenario
 
 
+def one_model_then_data(pairs: int, points: int) -> tuple[list[CloudRecord], dict[int, Similarity]]:
+    """One model at 1 s, then ``pairs`` data clouds 0.1 s apart of known poses (four, in turn):
+    the records, and the truth by data bag time."""
+    model = bumpy_surface(points, seed=1)
+    records = [CloudRecord(MODEL_TOPIC, 10**9, 10**9, MODEL_FRAME, model)]
+    truth = {}
+    for k in range(pairs):
+        stamp = 2 * 10**9 + k * 10**8
+        truth[stamp] = truth_for(k % 4)
+        records.append(CloudRecord(DATA_TOPIC, stamp, stamp, DATA_FRAME, data_cloud(model, truth[stamp], k)))
+    return records, truth
+
+
 def cloud_bytes(points: np.ndarray) -> bytes:
     packed = np.zeros(
         len(points),
@@ -271,5 +284,26 @@ def write_mcap_ros2(path: Path, records: Sequence[CloudRecord], chunk_size: int 
             writer.write_message(
                 record.topic, schema, message, log_time=record.bag_ns, publish_time=record.bag_ns
             )
+        writer.finish()
+    return path
+
+
+def write_mcap_unchunked(path: Path, records: Sequence[CloudRecord]) -> Path:
+    """A bare ``.mcap`` with its messages outside chunks, under a CRC of the whole data section
+    (mcap's own writer, CDR from rosbags): what only the data section's CRC protects."""
+    from mcap.writer import Writer
+    from rosbags.typesys import Stores, get_typestore
+
+    typestore = get_typestore(Stores.ROS2_JAZZY)
+    with path.open("wb") as stream:
+        writer = Writer(stream, use_chunking=False, enable_crcs=True, enable_data_crcs=True)
+        writer.start(profile="ros2", library="frisicp tests")
+        schema = writer.register_schema("sensor_msgs/msg/PointCloud2", "ros2msg", POINTCLOUD2_MSGDEF.encode())
+        channels = {}
+        for record in records:
+            if record.topic not in channels:
+                channels[record.topic] = writer.register_channel(record.topic, "cdr", schema)
+            raw = typestore.serialize_cdr(rosbags_cloud(typestore, record), "sensor_msgs/msg/PointCloud2")
+            writer.add_message(channels[record.topic], record.bag_ns, bytes(raw), record.bag_ns)
         writer.finish()
     return path
