@@ -29,6 +29,7 @@ from .estimate import PairPart, estimate_similarities
 from .features import Descriptors, describe
 from .kdtree import NearestNeighbors
 from .points import rms_radius
+from .prepared import PreparedModel
 from .similarity import FloatArray, Similarity
 
 DATA_RADIUS = 0.35
@@ -44,10 +45,14 @@ _MIN_KEYPOINTS = 10
 _BATCH = 2000
 
 
-def feature_starts(data: FloatArray, model: FloatArray, rng: np.random.Generator) -> list[Similarity]:
-    """Starting poses for ``data`` onto ``model`` from descriptor matches (module doc), best first."""
+def feature_starts(data: FloatArray, model: PreparedModel, rng: np.random.Generator) -> list[Similarity]:
+    """Starting poses for ``data`` onto ``model`` from descriptor matches (module doc), best first.
+
+    The model's descriptors are the prepared model's (:meth:`PreparedModel.descriptors`): its
+    radii, DATA_RADIUS times its own RMS radius times 2^(k/2), do not depend on the data, so a
+    map is described once for every cold search against it."""
     data_radius = rms_radius(data)
-    ratio = rms_radius(model) / data_radius
+    ratio = model.radius / data_radius
     radius = DATA_RADIUS * data_radius
     described = describe(data, radius)
     if described.keypoints.shape[0] < _MIN_KEYPOINTS:
@@ -55,7 +60,7 @@ def feature_starts(data: FloatArray, model: FloatArray, rng: np.random.Generator
     scored: list[tuple[float, Similarity]] = []
     for k in SCALE_STEPS:
         rung = ratio * 2.0 ** (k / 2)
-        model_described = describe(model, radius * rung, MAX_MODEL_KEYPOINTS)
+        model_described = model.descriptors(DATA_RADIUS * model.radius * 2.0 ** (k / 2), MAX_MODEL_KEYPOINTS)
         if model_described.keypoints.shape[0] < _MIN_KEYPOINTS:
             continue
         for share, pose in _robust_poses(described, model_described, rung, rng):
