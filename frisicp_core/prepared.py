@@ -67,11 +67,13 @@ class PreparedModel:
     ``PreparedModel(points)`` validates the points as ``register`` does (``ValueError`` with the
     reason for unusable ones; ``drop_nonfinite`` removes NaN/Inf rows instead) and puts them in
     spatial order. Pass it to :func:`frisicp_core.register` in place of the model array.
+    ``copy=False`` hands an array over without a copy (2,000,000 points are 48 MB): the caller
+    must not change it afterwards.
     """
 
-    def __init__(self, points: ArrayLike, *, drop_nonfinite: bool = False) -> None:
+    def __init__(self, points: ArrayLike, *, drop_nonfinite: bool = False, copy: bool = True) -> None:
         validated = as_point_set(points, "model", drop_nonfinite=drop_nonfinite)
-        if isinstance(points, np.ndarray) and np.may_share_memory(validated, points):
+        if copy and isinstance(points, np.ndarray) and np.may_share_memory(validated, points):
             validated = validated.copy()
         self._set_up(validated)
         self.points.flags.writeable = False
