@@ -116,9 +116,7 @@ class PreparedModel:
     @property
     def diagonal(self) -> float:
         """Length of the bounding box's diagonal."""
-        return self._cache.value(
-            ("diagonal",), lambda: float(np.linalg.norm(self.points.max(axis=0) - self.points.min(axis=0)))
-        )
+        return self._cache.value(("diagonal",), lambda: _diagonal(self.points))
 
     @property
     def spread(self) -> float:
@@ -258,6 +256,12 @@ class _Cache:
             self.values[key] = compute()
         found: T = self.values[key]
         return found
+
+
+def _diagonal(points: FloatArray) -> float:
+    # Per column: an (n, m) array's axis-0 reductions are several times slower (points.centroid).
+    extent = [float(points[:, k].max() - points[:, k].min()) for k in range(points.shape[1])]
+    return float(np.linalg.norm(extent))
 
 
 def _state_key(rng: np.random.Generator) -> Any:
