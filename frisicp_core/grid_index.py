@@ -12,14 +12,6 @@ sorted by key), so a box query touches only the cells the box meets and the poin
   against the box exactly;
 - the result is sorted, so the window keeps the cloud's own (spatial) order.
 
-A box holding more points than wanted is thinned on the way (``most``): the points of each cell
-are stored in a random order, fixed when the index is built, and a share f of a cell is its
-first f n_c points (rounded up or down at random, per cell and fixed too). Thinning then costs
-what the kept points cost, not the box's, and the boxes around a tracked sensor, scan after
-scan, keep the same map points where they overlap: the scans are registered against one
-sampling of the map, not a new one each time (whose differences would jitter the estimates),
-and the normals fitted for one scan serve the next (:class:`frisicp_core.prepared.PreparedModel`).
-
 The cell edge h is chosen so that the bounding box holds about :data:`POINTS_PER_CELL` points per
 cell on average if the points filled it: a surface (a terrain, the walls of a room) fills few
 of its bounding box's cells, so occupied cells hold more, a few dozen points typically. A box
@@ -57,21 +49,16 @@ class GridIndex:
         self.cell = (volume * POINTS_PER_CELL / max(n, 1)) ** (1.0 / dim)
         self.shape = np.floor(extent / self.cell).astype(np.int64) + 1
         keys = self._keys(self._cells(points))
-        rng = np.random.default_rng(0)
-        shuffled = rng.permutation(n)  # a random order within each cell (see the module doc)
-        self.order = shuffled[np.argsort(keys[shuffled], kind="stable")]
+        self.order = np.argsort(keys)
         self.occupied, self.starts = np.unique(keys[self.order], return_index=True)
         self.ends = np.append(self.starts[1:], n)
-        self.rounding: FloatArray = rng.random(size=(self.occupied.shape[0],))
 
-    def box(self, low: FloatArray, high: FloatArray, most: int | None = None) -> tuple[np.ndarray, int]:
-        """Indices (ascending) of the points p with low <= p <= high on every axis; with
-        ``most``, about that many of them when there are more (module doc). Also returns how
-        many points the cells that meet the box hold (at least as many as the box)."""
+    def box(self, low: FloatArray, high: FloatArray) -> np.ndarray:
+        """Indices (ascending) of the points p with low <= p <= high on every axis."""
         first = np.maximum(self._cells(low[None])[0], 0)
         last = np.minimum(self._cells(high[None])[0], self.shape - 1)
         if np.any(last < first):
-            return np.zeros(0, dtype=np.int64), 0
+            return np.zeros(0, dtype=np.int64)
         counts = last - first + 1
         if float(np.prod(counts.astype(np.float64))) > self.occupied.shape[0]:
             # More cells in the box than occupied ones: test the occupied ones instead.
@@ -83,18 +70,13 @@ class GridIndex:
             wanted = self._keys(np.stack([g.reshape(-1) for g in grids], axis=1))
             found = np.minimum(np.searchsorted(self.occupied, wanted), self.occupied.shape[0] - 1)
             found = found[self.occupied[found] == wanted]
-        starts, ends = self.starts[found], self.ends[found]
-        total = int((ends - starts).sum())
-        if most is not None and total > most:
-            share = most / total
-            ends = starts + np.floor((ends - starts) * share + self.rounding[found]).astype(np.int64)
-        candidates = self.order[_runs(starts, ends)]
+        candidates = self.order[_runs(self.starts[found], self.ends[found])]
         inside = np.ones(candidates.shape[0], dtype=bool)
         for k in range(self.points.shape[1]):
             column = self.points[candidates, k]
             inside &= (column >= low[k]) & (column <= high[k])
         rows: np.ndarray = np.sort(candidates[inside])
-        return rows, total
+        return rows
 
     def _cells(self, points: FloatArray) -> np.ndarray:
         with np.errstate(invalid="ignore", over="ignore"):

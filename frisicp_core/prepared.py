@@ -143,11 +143,34 @@ class PreparedModel:
         return self._cache.value(("grid",), lambda: GridIndex(self.points))
 
     def inside(self, low: FloatArray, high: FloatArray, most: int | None = None) -> tuple[np.ndarray, int]:
-        """Rows (ascending) of the points within the box [low, high] (per axis, inclusive); with
-        ``most``, a random subset of about that many when there are more; and how many points
-        the cells that meet the box hold (:meth:`GridIndex.box
-        <frisicp_core.grid_index.GridIndex.box>`; the grid index is built on first use)."""
-        return self.grid().box(low, high, most)
+        """Rows (ascending) of the points within the box [low, high] (per axis, inclusive), and
+        how many there are. With ``most``, a random subset of about that many when there are more:
+        the points whose fixed random key (uniform in [0, 1), drawn once per model) is below
+        ``most / count``. Two boxes keep the same points where they overlap, so the windows of a
+        tracked sensor, scan after scan, are one sampling of the map (a new one per scan would
+        jitter the estimates), and what was fitted to those points (their normals) serves again.
+
+        A box holding the whole model takes every row; the first other box tests every point (one
+        vectorised pass, cheaper than building the grid index for a model used once, as one
+        ``register`` call with an array uses it); later ones use the grid index
+        (:class:`frisicp_core.grid_index.GridIndex`, built then). The rows do not depend on which."""
+        bounds = self._cache.value(("bounds",), lambda: _bounds(self.points))
+        if np.all(low <= bounds[0]) and np.all(high >= bounds[1]):
+            rows = np.arange(len(self))
+        elif self._cache.boxes > 0 or ("grid",) in self._cache.values:
+            rows = self.grid().box(low, high)
+        else:
+            inside = np.ones(len(self), dtype=bool)
+            for k in range(self.dim):
+                column = self.points[:, k]
+                inside &= (column >= low[k]) & (column <= high[k])
+            rows = np.flatnonzero(inside)
+        self._cache.boxes += 1
+        count = int(rows.shape[0])
+        if most is not None and count > most:
+            keys = self._cache.value(("keys",), lambda: _keys(len(self)))
+            rows = rows[keys[rows] < most / count]
+        return rows, count
 
     def index(self, backend: str = "auto") -> PreparedModel:
         """Build the KD-tree and the grid index now (else the first registration that needs them
@@ -173,6 +196,7 @@ class PreparedModel:
         return self._cache.value(("units", unit), lambda: self._divided(unit))
 
     def _divided(self, unit: float) -> PreparedModel:
+        # (Its thinning keys are drawn as the model's: the same seed, the same count.)
         # Dividing by a power of two is exact: the radius divides exactly, and the spatial order
         # (a grid over the bounding box) is the same, so this is what preparing the divided
         # points would give.
@@ -249,6 +273,7 @@ class _Cache:
     thinned: OrderedDict[tuple[Any, ...], tuple[FloatArray, Mapping[str, Any]]] = field(
         default_factory=OrderedDict
     )
+    boxes: int = 0  # box queries answered (see inside)
 
     def value(self, key: tuple[Any, ...], compute: Callable[[], T]) -> T:
         """The entry ``key``, computed by ``compute`` the first time."""
@@ -256,6 +281,17 @@ class _Cache:
             self.values[key] = compute()
         found: T = self.values[key]
         return found
+
+
+def _bounds(points: FloatArray) -> tuple[FloatArray, FloatArray]:
+    columns = range(points.shape[1])
+    return np.array([points[:, k].min() for k in columns]), np.array([points[:, k].max() for k in columns])
+
+
+def _keys(count: int) -> np.ndarray:
+    """The points' thinning keys (see PreparedModel.inside): fixed, uniform, 4 bytes a point."""
+    keys: np.ndarray = np.random.default_rng(0).random(count, dtype=np.float32)
+    return keys
 
 
 def _diagonal(points: FloatArray) -> float:

@@ -22,17 +22,20 @@ When the model is cut:
 
 - only a model with more than :data:`MODEL_RATIO` times the data's points (a scan against a
   scan of the same size is not a map) and at least :data:`MIN_MODEL` points;
-- only when the window leaves out a good part of it (at most :data:`MAX_SHARE` of its points
-  inside): else the whole model is used as it is, with its tree already built;
 - only when the window is a usable point set; else the whole model (a prediction that puts
   the scan off the map; ``register`` then retries it cold, see below);
 - a window of more than :data:`DENSITY` times the data's points is thinned to about that many
-  (a random subset that is the same where two windows overlap: :class:`frisicp_core.grid_index.
-  GridIndex`). A map denser than the scan adds to the cost, not to the accuracy: the last level
-  fits point-to-plane, with the normals fitted to the map at full resolution
-  (:meth:`PreparedModel.normals <frisicp_core.prepared.PreparedModel.normals>`), so the
-  distance between the map's samples does not enter; and the cost stays that of the scan however
-  dense the map (``benchmarks/big_map.py``: maps of 100,000 to 4,000,000 points).
+  (a random subset that is the same where two windows overlap: :meth:`PreparedModel.inside
+  <frisicp_core.prepared.PreparedModel.inside>`), also when it holds the whole model (an object
+  tracked against its full-resolution model). A map denser than the scan adds to the cost, not
+  to the accuracy: the last level fits point-to-plane, with the normals fitted to the map at full
+  resolution (:meth:`PreparedModel.normals <frisicp_core.prepared.PreparedModel.normals>`), so
+  the distance between the map's samples hardly enters; and the cost stays that of the scan
+  however dense the map (``benchmarks/big_map.py``: maps of 100,000 to 4,000,000 points). 1.5
+  times: a 2,000,000-point terrain tracked with 10,000-point scans took 31, 33 and 41 ms of CPU
+  per scan at 1, 1.5 and 3 times (largest rotation errors 0.064, 0.019, 0.017 degrees); a
+  100,000-point object model 42, 43 and 64 ms (0.021, 0.021, 0.023 degrees), where the node's
+  old random cap of the model to 10,000 points took 40 ms.
 
 What the verdict sees changes with it, deliberately: overlaps, radius and diagonal are the
 window's. The backward overlap is the share of the window the scan covers (about half: the
@@ -58,10 +61,8 @@ MARGIN = 0.15
 # A model is cut only when it has more than this many times the data's points, and this many.
 MODEL_RATIO = 4.0
 MIN_MODEL = 20_000
-# Largest share of the model a window may hold; beyond it the whole model is used.
-MAX_SHARE = 0.5
 # Most points of a window, in data points: a window with more is thinned at random to this many.
-DENSITY = 3.0
+DENSITY = 1.5
 
 
 def window_bounds(data: FloatArray, config: RegistrationConfig) -> tuple[FloatArray, FloatArray] | None:
@@ -99,9 +100,7 @@ def cut(data: FloatArray, model: PreparedModel, config: RegistrationConfig) -> P
     bounds = window_bounds(data, config)
     if bounds is None:
         return None
-    rows, held = model.inside(*bounds, most=int(DENSITY * data.shape[0]))
-    if held > MAX_SHARE * len(model):
-        return None
+    rows, _ = model.inside(*bounds, most=int(DENSITY * data.shape[0]))
     try:
         return model.subset(rows)
     except ValueError:  # too few points, degenerate: the prediction put the scan off the map

@@ -163,7 +163,23 @@ def test_small_models_and_unpredicted_poses_are_not_cut():
     assert window_module.window_bounds(data, RegistrationConfig()) is None
     small = PreparedModel(TERRAIN.map_points(15_000))
     assert window_module.cut(data[:1000], small, RegistrationConfig(initial=POSE)) is None
-    # Most of the model in the window: the whole model, whose tree is built anyway.
-    assert window_module.cut(data[:1000], MAP, RegistrationConfig(initial=POSE)) is not None
+    window = window_module.cut(data[:1000], MAP, RegistrationConfig(initial=POSE))
+    assert window is not None and 1300 < len(window) < 1700  # thinned to 1.5 times the data
+    # A box around the whole map: the whole map, thinned alike.
     everywhere = Similarity(POSE.scale * 20, POSE.rotation, POSE.translation)
-    assert window_module.cut(data[:1000], MAP, RegistrationConfig(initial=everywhere)) is None
+    window = window_module.cut(data[:1000], MAP, RegistrationConfig(initial=everywhere))
+    assert window is not None and 1300 < len(window) < 1700
+
+
+def test_windows_keep_the_same_map_points_where_they_overlap():
+    """The thinning keeps a point by a key fixed per point: two boxes share their common points'
+    selection, and the grid index answers as a pass over every point does."""
+    first = PreparedModel(MAP.points)
+    low, high = np.array([40.0, 40.0, -10.0]), np.array([60.0, 60.0, 10.0])
+    by_pass, count = first.inside(low, high, most=2000)  # the first box: every point tested
+    by_grid, again = first.inside(low, high, most=2000)  # later ones: the grid index
+    np.testing.assert_array_equal(by_pass, by_grid)
+    shifted, _ = first.inside(low + 2.0, high + 2.0, most=2000)
+    common = np.intersect1d(by_pass, shifted)
+    inside_both = np.all((MAP.points[common] >= low + 2.0) & (MAP.points[common] <= high), axis=1)
+    assert count == again and inside_both.all() and common.size > 0.7 * by_pass.size
