@@ -24,7 +24,8 @@ When the model is cut:
   scan of the same size is not a map) and at least :data:`MIN_MODEL` points;
 - only when the window is a usable point set; else the whole model (a prediction that puts
   the scan off the map; ``register`` then retries it cold, see below);
-- a window of more than :data:`DENSITY` times the data's points is thinned to about that many
+- a window of more than :data:`DENSITY` times the data's points (more for a guess's wider box,
+  :class:`Box`) is thinned to about that many
   (a random subset that is the same where two windows overlap: :meth:`PreparedModel.inside
   <frisicp_core.prepared.PreparedModel.inside>`), also when it holds the whole model (an object
   tracked against its full-resolution model). A map denser than the scan adds to the cost, not
@@ -49,6 +50,8 @@ whole map (:func:`frisicp_core.registration.register`).
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from .config import RegistrationConfig
@@ -65,10 +68,21 @@ MIN_MODEL = 20_000
 DENSITY = 1.5
 
 
-def window_bounds(data: FloatArray, config: RegistrationConfig) -> tuple[FloatArray, FloatArray] | None:
-    """The box (low, high corners, model frame) of the window for ``data`` under the predicted
-    pose of ``config`` (module doc), or None when ``config`` predicts none: no warm start, and
-    no initial guess with a known scale (an unknown scale leaves the scan's size open)."""
+@dataclass(frozen=True)
+class Box:
+    """A window's box (low and high corners, model frame) and how many more map points than the
+    data's box it should keep, for the same density where the data lie (``spread``: a guess's
+    wider box holds the same surface more thinly)."""
+
+    low: FloatArray
+    high: FloatArray
+    spread: float
+
+
+def window_bounds(data: FloatArray, config: RegistrationConfig) -> Box | None:
+    """The box of the window for ``data`` under the predicted pose of ``config`` (module doc),
+    or None when ``config`` predicts none: no warm start, and no initial guess with a known
+    scale (an unknown scale leaves the scan's size open)."""
     guess = config.guess
     if config.initial is not None:
         pose = config.initial
@@ -88,8 +102,11 @@ def window_bounds(data: FloatArray, config: RegistrationConfig) -> tuple[FloatAr
         extra = GUESS_SIGMAS * guess.translation + reach * (2.0 * np.sin(turn / 2.0) + stretch)
     low = np.array([mapped[:, k].min() for k in range(mapped.shape[1])])
     high = np.array([mapped[:, k].max() for k in range(mapped.shape[1])])
-    margin = MARGIN * float(np.max(high - low)) + extra
-    return low - margin, high + margin
+    span = float(np.max(high - low))
+    margin = MARGIN * span + extra
+    # A surface (dimension m - 1) in a box widened by 2 extra holds that much more of the map.
+    spread = ((span + 2.0 * extra) / span) ** (data.shape[1] - 1) if span > 0 else 1.0
+    return Box(low - margin, high + margin, spread)
 
 
 def cut(data: FloatArray, model: PreparedModel, config: RegistrationConfig) -> PreparedModel | None:
@@ -97,10 +114,10 @@ def cut(data: FloatArray, model: PreparedModel, config: RegistrationConfig) -> P
     when the whole model is to be used."""
     if len(model) < max(MIN_MODEL, MODEL_RATIO * data.shape[0]):
         return None
-    bounds = window_bounds(data, config)
-    if bounds is None:
+    box = window_bounds(data, config)
+    if box is None:
         return None
-    rows, _ = model.inside(*bounds, most=int(DENSITY * data.shape[0]))
+    rows, _ = model.inside(box.low, box.high, most=int(DENSITY * box.spread * data.shape[0]))
     try:
         return model.subset(rows)
     except ValueError:  # too few points, degenerate: the prediction put the scan off the map
