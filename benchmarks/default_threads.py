@@ -3,6 +3,8 @@
     python benchmarks/default_threads.py            # 15 scales, 3 rounds, one busy process beside
     python benchmarks/default_threads.py --busy 0   # without the extra load
     python benchmarks/default_threads.py --quick    # 2 scales, one round -> build/
+    python benchmarks/default_threads.py --revision 528e37e --out build/threads_before.md
+                                                    # a core from before it limited its threads
 
 ``register`` limits OpenMP (pykdtree) and BLAS to one thread itself (frisicp_core.threads), so a
 user who never heard of ``OMP_NUM_THREADS`` should get the pinned speed. Two worker processes run
@@ -24,10 +26,11 @@ import os
 import platform
 import statistics
 import sys
+import tempfile
 from datetime import date
 from pathlib import Path
 
-from speed_ab import ROOT, Worker
+from speed_ab import WORKTREE, Worker, extract_core
 
 from frisicp_bench import script
 
@@ -45,12 +48,23 @@ def main(argv: list[str] | None = None) -> int:
     parser = script.parser(__file__, __doc__, "2 scales, one round", data=True, report=True)
     parser.add_argument("--rounds", type=int, default=3, help="times each case is timed per worker (3)")
     parser.add_argument("--busy", type=int, default=1, help="processes spinning a CPU meanwhile (1)")
+    parser.add_argument(
+        "--revision",
+        default=WORKTREE,
+        help="git revision of frisicp_core to time (default: the working tree)",
+    )
     args = script.parse(parser, argv)
     bunny = args.data / BUNNY
     if not bunny.exists():
         return script.skip(args, f"no data: {bunny} is absent")
+    with tempfile.TemporaryDirectory() as folder:
+        core, which = extract_core(args.revision, Path(folder))
+        return measure(args, bunny, core, which)
+
+
+def measure(args, bunny: Path, core: Path, which: str) -> int:
     scales, rounds = (script.SMOKE_SCALES, 1) if args.quick else (SCALES, args.rounds)
-    workers = {"default": Worker("default", ROOT, 0, bunny), "pinned": Worker("pinned", ROOT, 1, bunny)}
+    workers = {"default": Worker("default", core, 0, bunny), "pinned": Worker("pinned", core, 1, bunny)}
     busy = [multiprocessing.Process(target=spin, daemon=True) for _ in range(0 if args.quick else args.busy)]
     for process in busy:
         process.start()
@@ -75,7 +89,7 @@ def main(argv: list[str] | None = None) -> int:
     lines = [
         f"default threads: {total['default']:.2f} s, pinned (OMP_NUM_THREADS=1): {total['pinned']:.2f} s"
         f" (sums of per-case medians over {len(scales)} cases, {rounds} round(s), {len(busy)} busy"
-        f" process(es) beside, load {os.getloadavg()[0]:.2f})",
+        f" process(es) beside, load {os.getloadavg()[0]:.2f}); frisicp_core: {which}",
         f"ratio default / pinned: {ratio:.3f} (target <= {TARGET}: {verdict})",
         f"accurate (rotation < 1 deg, scale < 1 %): default {accurate['default']}, pinned {accurate['pinned']}"
         f" of {len(scales) * rounds}",
