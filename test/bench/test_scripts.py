@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import frisicp_core.registration as registration
+import frisicp_core.levels as levels
 from frisicp_bench import script
 from frisicp_bench.datasets import default_data_dir
 from frisicp_bench.neighbours import counting_queries, neighbours_class
@@ -68,7 +68,7 @@ def test_the_core_builds_its_trees_as_the_class_put_in_its_place_for_the_block()
     with neighbours_class(Recording):
         recorded = register(data, model)
     assert len(built) >= 2  # a data and a model tree at least
-    assert registration.NearestNeighbors is NearestNeighbors  # restored
+    assert levels.NearestNeighbors is NearestNeighbors  # restored
     np.testing.assert_array_equal(recorded.similarity.matrix(), plain.similarity.matrix())
 
 
@@ -80,6 +80,6 @@ def test_counting_queries_counts_query_points_and_resets_on_reading() -> None:
         assert queried() == 0
         NearestNeighbors(model).query(data[:10])  # built outside the core: not replaced, not counted
         assert queried() == 0
-        registration.NearestNeighbors(model).query(data[:10])
+        levels.NearestNeighbors(model).query(data[:10])
         assert queried() == 10
     assert first >= data.shape[0] + model.shape[0]  # at least one full bidirectional pass
