@@ -38,6 +38,9 @@ setup(
         # Kept after measuring the alternatives (docs/nn_backends.md): ~1.7x scipy's cKDTree in
         # register; nanoflann bindings 0.99-1.26x of it, not worth a dependency. cKDTree is the fallback.
         "pykdtree>=1.3.6",  # the first with wheels (1.3.0 no longer builds)
+        # register() runs OpenMP (pykdtree) and BLAS on one thread (frisicp_core.threads): their
+        # default threads made it 3.5x slower on a busy 2-core machine. 3.0: ThreadpoolController.
+        "threadpoolctl>=3.0",
         "plyfile>=1.0",  # PLY (ASCII and binary) reading for the CLI
         "pypcd4>=1.1",  # PCD (ascii, binary, binary_compressed) reading for the CLI
         # Offline bag mode, no ROS installation needed. 0.11: AnyReader opens bare .db3/.mcap files

@@ -9,6 +9,7 @@ from .estimate import estimate_similarity
 from .fit import Fit
 from .kdtree import NearestNeighbors, nearest
 from .points import as_point_set
+from .prepared import PreparedModel
 from .registration import better_of, register, worse_than_track
 from .result import IterationRecord, LevelReport, RegistrationResult
 from .sampling import downsample
@@ -27,6 +28,7 @@ __all__ = [
     "LevelReport",
     "Method",
     "NearestNeighbors",
+    "PreparedModel",
     "RegistrationConfig",
     "RegistrationResult",
     "Similarity",

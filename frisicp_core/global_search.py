@@ -30,6 +30,7 @@ from .estimate import PairPart, estimate_similarities
 from .features import Descriptors, describe
 from .kdtree import NearestNeighbors
 from .points import rms_radius
+from .prepared import PreparedModel
 from .similarity import FloatArray, Similarity
 
 # The second radius is the first times sqrt(2), a rung apart: both meet the same model radii,
@@ -53,40 +54,42 @@ _MIN_KEYPOINTS = 10
 _BATCH = 2000
 
 
-def feature_starts(data: FloatArray, model: FloatArray, rng: np.random.Generator) -> list[Similarity]:
-    """Starting poses for ``data`` onto ``model`` from descriptor matches (module doc), best first."""
-    data_radius, model_radius = rms_radius(data), rms_radius(model)
-    ratio = model_radius / data_radius
+def feature_starts(data: FloatArray, model: PreparedModel, rng: np.random.Generator) -> list[Similarity]:
+    """Starting poses for ``data`` onto ``model`` from descriptor matches (module doc), best first.
+
+    The model's descriptors are the prepared model's (:meth:`PreparedModel.descriptors`): its
+    radii, DATA_RADII[0] times its own RMS radius times 2^(k/2), do not depend on the data, so a
+    map is described once for every cold search against it."""
+    data_radius = rms_radius(data)
+    ratio = model.radius / data_radius
     candidates: list[Similarity] = []
-    model_described_at: dict[int, Descriptors] = {}  # by rung index from the first data radius
     for step, share in enumerate(DATA_RADII):
-        radius = share * data_radius
-        described = describe(data, radius)
+        described = describe(data, share * data_radius)
         if described.keypoints.shape[0] < _MIN_KEYPOINTS:
             continue
         for k in SCALE_STEPS:
             rung = ratio * 2.0 ** (k / 2)
-            key = k + step  # this model radius is rung k + step of the first data radius
-            if key not in model_described_at:
-                model_described_at[key] = describe(model, radius * rung, MAX_MODEL_KEYPOINTS)
-            model_described = model_described_at[key]
+            # This model radius is rung k + step of the first data radius: computed from that
+            # index, so both data radii meet the same cached descriptors.
+            model_radius = DATA_RADII[0] * model.radius * 2.0 ** ((k + step) / 2)
+            model_described = model.descriptors(model_radius, MAX_MODEL_KEYPOINTS)
             if model_described.keypoints.shape[0] < _MIN_KEYPOINTS:
                 continue
             candidates += [pose for _, pose in _robust_poses(described, model_described, rung, rng)]
     if not candidates:
         return []
-    coverage = _coverage(candidates, data, model, FIT_REACH * model_radius)
+    coverage = _coverage(candidates, data, model, FIT_REACH * model.radius)
     return [candidates[k] for k in np.argsort(-coverage, kind="stable")[:STARTS]]
 
 
-def _coverage(poses: list[Similarity], data: FloatArray, model: FloatArray, reach: float) -> FloatArray:
+def _coverage(poses: list[Similarity], data: FloatArray, model: PreparedModel, reach: float) -> FloatArray:
     """For each pose, the share of (a sample of) the data points it brings within ``reach`` of
     the model plus the share of model points it brings the data within ``reach`` of: how much of
     the clouds it makes coincide. The rungs' own scores are not comparable between rungs (a
     coarse rung's few keypoints are matched within a wide reach, by chance too); this is."""
     data_sample = data[:: max(1, data.shape[0] // _COVERAGE_SAMPLE)]
-    model_sample = model[:: max(1, model.shape[0] // _COVERAGE_SAMPLE)]
-    model_tree, data_tree = NearestNeighbors(model), NearestNeighbors(data)
+    model_sample = model.points[:: max(1, len(model) // _COVERAGE_SAMPLE)]
+    model_tree, data_tree = model.tree(), NearestNeighbors(data)
     shares = np.zeros(len(poses))
     for k, pose in enumerate(poses):
         forward, _ = model_tree.query(pose.apply(data_sample))

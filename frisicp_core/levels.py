@@ -17,6 +17,7 @@ from .kdtree import NearestNeighbors
 from .overlap import Selection
 from .points import centroid
 from .poses import PoseBatch
+from .prepared import PreparedModel
 from .similarity import FloatArray
 
 # Points sampled to measure a set's spacing (median distance to the nearest other point).
@@ -110,7 +111,7 @@ class Pyramid:
         self,
         pyramid: list[tuple[FloatArray, FloatArray]],
         data: FloatArray,
-        model: FloatArray,
+        model: PreparedModel,
         bidirectional: bool,
         config: RegistrationConfig,
     ) -> None:
@@ -134,13 +135,17 @@ class Pyramid:
     def __getitem__(self, index: int) -> Level:
         if index not in self._built:
             backend = self._config.backend
+            data, model = self._sets[index]
             targets = None
-            if self._config.dense_targets:
+            if self._config.dense_targets or (data is self._full[0] and model is self._full[1].points):
+                # The full model's tree is the prepared model's, built once for every registration
+                # against it (frisicp_core.prepared); the data's, once per registration.
                 if self._targets is None:
-                    full = Level.build(*self._full, self._bidirectional, backend)
-                    self._targets = (full.data_tree, full.model_tree)
+                    full_data = self._full[0]
+                    data_tree = NearestNeighbors(full_data, backend) if self._bidirectional else None
+                    self._targets = (data_tree, self._full[1].tree(backend))
                 targets = self._targets
-            self._built[index] = Level.build(*self._sets[index], self._bidirectional, backend, targets)
+            self._built[index] = Level.build(data, model, self._bidirectional, backend, targets)
         return self._built[index]
 
 

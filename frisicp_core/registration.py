@@ -50,14 +50,17 @@ from .hypotheses import beyond_guess, covariance_scale_bounds, initial_hypothese
 from .levels import Pairs, Pyramid, level_motion
 from .points import as_point_set, centroid, check_same_dimension, rms_radius, spread
 from .poses import PoseBatch
-from .refine import ModelNormals, Sets, polish, uncertainty_of
+from .prepared import PreparedModel
+from .refine import Sets, polish, uncertainty_of
 from .result import IterationRecord, LevelReport, RegistrationResult
 from .sampling import downsample, in_spatial_order, level_sizes
 from .similarity import FloatArray, Similarity
 from .solver import ACCELERATE_FROM, ACCELERATE_FROM_TRACKING, Solver, compare_finalists
+from .threads import one_thread
 from .uncertainty import Uncertainty
-from .units import Units
+from .units import Units, magnitude_exponent
 from .verdict import judge
+from .window import cut
 
 # Most passes a probe of the answer (frisicp_core.ambiguity) takes to settle on the screening
 # level, and the margin of the merit there within which it is run down the levels to be compared.
@@ -71,7 +74,7 @@ _PROBE_REFINED = 3
 
 def register(
     data: ArrayLike,
-    model: ArrayLike,
+    model: ArrayLike | PreparedModel,
     config: RegistrationConfig | None = None,
     *,
     previous: RegistrationResult | None = None,
@@ -80,10 +83,12 @@ def register(
 
     ``data`` (N, m) and ``model`` (M, m) are point sets in any dimension m >= 2; no
     correspondences are needed, and they may overlap only partly, in either direction.
-    ``config`` defaults to ``RegistrationConfig()``; ``RegistrationConfig.paper()`` runs the
-    published algorithm exactly. Raises ``ValueError`` on unusable input (see
-    :func:`as_point_set`). The result carries a verdict (``reliable``, ``reason``) and its
-    uncertainty.
+    ``model`` may also be a :class:`PreparedModel` (a map registered against many times: its
+    trees, levels, normals and descriptors are kept between calls; the result is the same as
+    with its array). ``config`` defaults to ``RegistrationConfig()``;
+    ``RegistrationConfig.paper()`` runs the published algorithm exactly. Raises ``ValueError`` on
+    unusable input (see :func:`as_point_set`). The result carries a verdict (``reliable``,
+    ``reason``) and its uncertainty.
 
     Tracking: a warm start (``config.initial``, usually the last result's similarity) is
     retried cold when its result is not reliable, or, given the track's last result
@@ -91,34 +96,89 @@ def register(
     jumped, relocalised, the map changed, and the warm start fell into a wrong minimum); of the
     two, the better one wins (:func:`better_of`). A poisoned start must not turn later good
     pairs into wrong answers.
+
+    Big maps: with a warm start, or an initial guess whose scale is known, a model with many
+    more points than the data is cut to a window around the predicted pose
+    (:mod:`frisicp_core.window`) at full resolution, and the data are registered against that.
+    A windowed result that fails as above is retried against the whole model (cold for a warm
+    start, around the guess for a guess), and a reliable answer from there is refined in a
+    window around itself, so that the two are compared, and the track goes on, alike.
+
+    OpenMP and BLAS run one thread inside the call (:mod:`frisicp_core.threads`).
     """
     config = config or RegistrationConfig()
     # Validated first, so that the units (frisicp_core.units) are those of the points used.
     data_set = as_point_set(data, "data", drop_nonfinite=config.drop_nonfinite)
-    model_set = as_point_set(model, "model", drop_nonfinite=config.drop_nonfinite)
-    units = Units.of(data_set, model_set)
-    data_set, model_set = units.scaled(data_set, model_set)
-    scaled = units.config(config)
+    if isinstance(model, PreparedModel):
+        units = Units.of_exponents(magnitude_exponent(data_set), model.exponent)
+        data_set = units.scaled_data(data_set)
+        prepared = model.in_units(units.model)
+    else:
+        model_set = as_point_set(model, "model", drop_nonfinite=config.drop_nonfinite)
+        units = Units.of(data_set, model_set)
+        data_set, model_set = units.scaled(data_set, model_set)
+        prepared = PreparedModel.of(model_set)
     # A pose far off (a warm start from clouds in other units) throws points past float64: their
     # distances are inf (or NaN: inf times a scale that squared to 0), the pose's merit is not
     # finite and it is dropped, or the result is unreliable. numpy's warnings on the way would
     # only be noise on a node's stderr.
-    with np.errstate(over="ignore", invalid="ignore"):
-        track = previous if config.initial is not None else None
-        result = units.restore(_register(data_set, model_set, scaled, track))
-        if config.initial is None:
-            return result
-        why = "" if result.reliable else result.reason
-        if not why and previous is not None:
-            why = worse_than_track(result, previous)
-        left = None if config.budget_seconds is None else config.budget_seconds - result.seconds
-        if not why or (left is not None and left <= 0):
-            return result
-        cold = units.restore(
-            _register(data_set, model_set, replace(scaled, initial=None, budget_seconds=left))
-        )
-    best = better_of(result, cold)
-    return replace(best, seconds=result.seconds + cold.seconds, retried=f"warm start retried cold: {why}")
+    with np.errstate(over="ignore", invalid="ignore"), one_thread():
+        return _tracked(data_set, prepared, config, units, previous if config.initial is not None else None)
+
+
+def _tracked(
+    data: FloatArray,
+    model: PreparedModel,
+    config: RegistrationConfig,
+    units: Units,
+    track: RegistrationResult | None,
+) -> RegistrationResult:
+    """:func:`register` of clouds in safe units: a window when one applies, the retry."""
+    scaled = units.config(config)
+    result = _windowed(data, model, scaled, units, track)
+    windowed = result.window_points is not None
+    if config.initial is None and not (windowed and not result.reliable):
+        return result
+    why = "" if result.reliable else result.reason
+    if not why and track is not None:
+        why = worse_than_track(result, track)
+    left = None if config.budget_seconds is None else config.budget_seconds - result.seconds
+    if not why or (left is not None and left <= 0):
+        return result
+    # A warm start is retried cold; a guess around the guess again, on the whole model.
+    other = units.restore(_register(data, model, replace(scaled, initial=None, budget_seconds=left)))
+    if windowed and other.reliable:
+        left = None if left is None else left - other.seconds
+        if left is None or left > 0:
+            again = replace(config, initial=other.similarity, guess=None, budget_seconds=left)
+            refined = _windowed(data, model, units.config(again), units, None)
+            if refined.reliable:
+                other = replace(refined, seconds=other.seconds + refined.seconds, warm_started=False)
+    best = better_of(result, other)
+    retried = (
+        "warm start retried cold"
+        if config.initial is not None
+        else "window around the guess retried on the whole model"
+    )
+    return replace(best, seconds=result.seconds + other.seconds, retried=f"{retried}: {why}")
+
+
+def _windowed(
+    data: FloatArray,
+    model: PreparedModel,
+    config: RegistrationConfig,
+    units: Units,
+    track: RegistrationResult | None,
+) -> RegistrationResult:
+    """One registration against the window of ``model`` that ``config`` predicts (or the whole
+    model when none applies; :func:`frisicp_core.window.cut`), restored to the given units."""
+    start = time.perf_counter()
+    window = cut(data, model, config)
+    cutting = time.perf_counter() - start
+    result = units.restore(_register(data, window or model, config, track))
+    if window is None:
+        return result
+    return replace(result, seconds=result.seconds + cutting, window_points=len(window))
 
 
 # A warm result is worse than the track when its smaller overlap fell below this share of the
@@ -165,22 +225,29 @@ def _smaller_overlap(result: RegistrationResult) -> float:
 
 
 def _register(
-    data: FloatArray, model: FloatArray, config: RegistrationConfig, track: RegistrationResult | None = None
+    data: FloatArray,
+    model: PreparedModel,
+    config: RegistrationConfig,
+    track: RegistrationResult | None = None,
 ) -> RegistrationResult:
     """One registration of validated clouds in safe units (see :func:`register`)."""
     start = time.perf_counter()
-    data_set, model_set = data, model
+    data_set, model_set = data, model.points
     check_same_dimension(data_set, model_set)
-    data_radius, model_radius = rms_radius(data_set), rms_radius(model_set)
-    data_set, model_set = in_spatial_order(data_set, data_radius), in_spatial_order(model_set, model_radius)
+    data_radius, model_radius = rms_radius(data_set), model.radius
+    data_set = in_spatial_order(data_set, data_radius)
 
     rng = np.random.default_rng(config.seed)
     sizes = level_sizes(data_set.shape[0], model_set.shape[0], config.levels, config.coarsest_points)
-    # Nested thinning, fine to coarse (Eq. 4: A^l = f(A^(l-1))).
+    # Nested thinning, fine to coarse (Eq. 4: A^l = f(A^(l-1))); the model's draws are the
+    # prepared model's, remembered (the same subsets, the generator left where they leave it).
     pyramid = [(data_set, model_set)]
+    model_level = model.levels()
     for size in reversed(sizes[:-1]):
-        finer_data, finer_model = pyramid[0]
-        pyramid.insert(0, (downsample(finer_data, size, rng), downsample(finer_model, size, rng)))
+        finer_data = pyramid[0][0]
+        coarser_data = downsample(finer_data, size, rng)
+        model_level = model.thinned(model_level, size, rng)
+        pyramid.insert(0, (coarser_data, model_level.points))
 
     scale_bounds = (
         covariance_scale_bounds(data_set, model_set) if config.method is Method.BOUNDED_ICP else None
@@ -189,7 +256,7 @@ def _register(
     bidirectional = config.method is Method.FRISICP
     last = len(pyramid) - 1
 
-    levels = Pyramid(pyramid, data_set, model_set, bidirectional, config)
+    levels = Pyramid(pyramid, data_set, model, bidirectional, config)
     families = initial_hypotheses(data_set, model_set, config, scale_bounds)
     finalists = [families[0][0]]
     if sum(len(family) for family in families) > 1:
@@ -230,7 +297,7 @@ def _register(
             # Each runs to its minimum on the first dense level: a start a few degrees off
             # the truth is still far above a settled wrong answer after a pass or two, so the
             # screening's early pruning would drop it.
-            starts = feature_starts(data_set, model_set, rng)
+            starts = feature_starts(data_set, model, rng)
             if starts:
                 (sim, report, pairs), runners_up = compare_finalists(
                     solver, levels[0], [sim, *runners_up, *starts], level_motion(config, 0, last)
@@ -279,7 +346,7 @@ def _register(
             final.model_tree,
             final.data_spacing,
             final.model_spacing,
-            ModelNormals(final.model_tree),
+            model.normals(final.model_tree),
             overlap=config.overlap,
             max_distance=config.max_distance,
         )
@@ -313,7 +380,7 @@ def _register(
         uncertainty = uncertainty_of(sim, plane, sets, data_centroid, rng, widening)
         # A competitor found by ICP is judged against the polished answer, polished itself: two
         # ICP runs stopped at their noise floor may lie a tolerance apart in one basin.
-        diagonal = float(np.linalg.norm(model_set.max(axis=0) - model_set.min(axis=0)))
+        diagonal = model.diagonal
         competitors = [
             replace(other, similarity=finished, separation=apart)
             for other in competitors
@@ -334,12 +401,12 @@ def _register(
         overlap_backward=overlap_backward,
         moment_scale=model_radius / data_radius,
         model_radius=model_radius,
-        spreads=(spread(data_set), spread(model_set)),
+        spreads=(spread(data_set), model.spread),
         fit=fit,
         competitor=competitor,
         uncertainty=uncertainty,
         tolerance=config.tolerance,
-        model_diagonal=float(np.linalg.norm(model_set.max(axis=0) - model_set.min(axis=0))),
+        model_diagonal=model.diagonal,
     )
     reliable, reason = verdict.reliable, verdict.reason
     budget = solver.deadline.reason

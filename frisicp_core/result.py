@@ -57,6 +57,9 @@ class RegistrationResult:
     ``competitor`` is a distinct pose that fits about as well, when one was found (the result
     is then not reliable: ambiguous); ``fit`` the hits and near misses where the clouds meet
     (:mod:`frisicp_core.fit`); ``retried`` says why a warm start was retried cold ('' if not).
+    ``window_points``: the number of model points in the window around the predicted pose that
+    the data were registered against (:mod:`frisicp_core.window`), None when the whole model was
+    used; the overlaps, the RMS and the verdict are then the window's.
     """
 
     similarity: Similarity
@@ -78,6 +81,7 @@ class RegistrationResult:
     competitor: Competitor | None = None
     fit: Fit | None = None
     retried: str = ""
+    window_points: int | None = None
 
     @property
     def covariance(self) -> FloatArray:

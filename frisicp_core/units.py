@@ -58,7 +58,11 @@ class Units:
     @classmethod
     def of(cls, data: FloatArray, model: FloatArray) -> Units:
         """The units for ``data`` and ``model`` (validated point sets; see the module doc)."""
-        data_exp, model_exp = magnitude_exponent(data), magnitude_exponent(model)
+        return cls.of_exponents(magnitude_exponent(data), magnitude_exponent(model))
+
+    @classmethod
+    def of_exponents(cls, data_exp: int, model_exp: int) -> Units:
+        """The units for clouds of these :func:`magnitude_exponent` (a prepared model keeps its own)."""
         if max(abs(data_exp), abs(model_exp)) <= SAFE_EXPONENT:
             return cls()
         if abs(data_exp - model_exp) <= SAFE_EXPONENT:
@@ -77,6 +81,10 @@ class Units:
         if self.unchanged:
             return data, model
         return data / self.data, model / self.model
+
+    def scaled_data(self, data: FloatArray) -> FloatArray:
+        """The data in these units (the array itself when its unit is 1)."""
+        return data if self.data == 1.0 else data / self.data
 
     def config(self, config: RegistrationConfig) -> RegistrationConfig:
         """``config`` for the scaled clouds: the warm start and the initial guess carry units."""

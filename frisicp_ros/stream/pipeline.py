@@ -15,8 +15,12 @@ constant_velocity the warm start is the last result moved on by the motion betwe
 (``frisicp_ros.stream.motion``).
 
 Clouds are read with ``read_cloud``: finite points, the optional voxel grid (``voxel_size``),
-then the random cap (``max_points``). The model is read once per model message and kept in the
-spatial (Morton) order the core would otherwise compute again for every pair.
+then, for data clouds, the random cap (``max_points``). The model is not capped: it is read once
+per model message and kept as a ``frisicp_core.PreparedModel`` at full resolution, so that every
+pair against it reuses its trees, levels and normals, and a warm-started (or guessed) scan is
+registered against the map around its predicted pose (``frisicp_core.window``). A latched map is
+prepared once for the whole run. Memory: about 60 bytes per map point, more once a cold search
+has described it (docs/node.md).
 
 Frames: a configured ``model_frame``/``data_frame`` must match; in synchronized mode a stream's
 frame must stay what it was at the last registered pair (else the pair is rejected; ``reset()``
@@ -31,10 +35,8 @@ from typing import Any, Literal
 
 import numpy as np
 
-from frisicp_core import RegistrationResult, Similarity, register
+from frisicp_core import PreparedModel, RegistrationResult, Similarity, register
 from frisicp_core.config import InitialGuess
-from frisicp_core.points import rms_radius
-from frisicp_core.sampling import in_spatial_order
 from frisicp_ros.stream.motion import MotionTracker
 from frisicp_ros.stream.pointcloud2 import CloudError, CloudPoints, read_cloud
 from frisicp_ros.stream.settings import PipelineSettings, settings_from
@@ -79,7 +81,8 @@ class PairHeader:
 
 @dataclass(frozen=True)
 class Registered(PairHeader):
-    """A registered pair. ``data_points``/``model_points``: how many points were registered.
+    """A registered pair. ``data_points``/``model_points``: how many points were registered (the
+    model's: those of the window around the predicted pose when one was used).
 
     ``reliable`` False: the result failed the plausibility checks (``reason`` says which); it is
     reported but must not be published or used as a pose.
@@ -130,7 +133,7 @@ class RegistrationPipeline:
         self.settings = settings or settings_from({})
         self._motion = MotionTracker()  # the last consecutive reliable results
         self._track: RegistrationResult | None = None  # the last reliable result (jump detection)
-        self._model_cache: tuple[Any, np.ndarray] | None = None
+        self._model_cache: tuple[Any, PreparedModel] | None = None
         self._frames: dict[str, str] = {}
         self._guess: InitialGuess | None = None
 
@@ -204,9 +207,11 @@ class RegistrationPipeline:
         if frame_problem:
             return Rejected(**vars(header), reason=frame_problem, input="pair")
         try:
-            model_points, model_read = self._model_points(model_msg)
+            model, model_read = self._model(model_msg)
         except CloudError as err:
             return Rejected(**vars(header), reason=f"model cloud: {err}", input="model")
+        except ValueError as err:  # points the core cannot register against (degenerate, too few)
+            return Rejected(**vars(header), reason=f"registration: {err}", input="model")
         try:
             data = self._read(data_msg)
         except CloudError as err:
@@ -220,7 +225,7 @@ class RegistrationPipeline:
         try:
             result = register(
                 data.points,
-                model_points,
+                model,
                 config,
                 previous=self._track if initial is not None else None,
             )
@@ -233,31 +238,31 @@ class RegistrationPipeline:
             **vars(header),
             result=result,
             data_points=len(data.points),
-            model_points=len(model_points),
+            model_points=result.window_points or len(model),
             timings=timings,
         )
 
-    def _read(self, msg: Any) -> CloudPoints:
+    def _read(self, msg: Any, capped: bool = True) -> CloudPoints:
         settings = self.settings
-        return read_cloud(
-            msg, settings.dims, settings.max_points, settings.registration.seed, settings.voxel_size
-        )
+        cap = settings.max_points if capped else None
+        return read_cloud(msg, settings.dims, cap, settings.registration.seed, settings.voxel_size)
 
-    def _model_points(self, model_msg: Any) -> tuple[np.ndarray, CloudPoints | None]:
-        """The model's points, read once per message (in latest_model mode the same message serves
-        every scan) and put in spatial order once. Returns the read's costs when it was read now."""
+    def _model(self, model_msg: Any) -> tuple[PreparedModel, CloudPoints | None]:
+        """The model prepared for registration (frisicp_core.PreparedModel), once per message: in
+        latest_model mode the same message serves every scan. Full resolution: ``max_points``
+        caps data clouds only; a random cap of a 2,000,000-point map to 10,000 points kept one
+        point in 200 of those a scan meets, and every pose against it was wrong (issue 19).
+        Returns the read's costs (preparation counted as down-sampling) when it was read now;
+        ``ValueError`` for points the core cannot register against."""
         if self._model_cache is not None and self._model_cache[0] is model_msg:
             return self._model_cache[1], None
-        read = self._read(model_msg)
-        points = read.points
-        # The core puts a scattered cloud in Morton order on every call; doing it here, once, hands
-        # it the order it would compute (a sorted set sorts to itself).
+        read = self._read(model_msg, capped=False)
         started = time.perf_counter()
         with np.errstate(all="ignore"):  # absurd coordinates are the core's to reject, with a reason
-            points = in_spatial_order(points, rms_radius(points))
+            prepared = PreparedModel(read.points, copy=False)  # the read's own array
         read = replace(read, downsample_seconds=read.downsample_seconds + time.perf_counter() - started)
-        self._model_cache = (model_msg, points)
-        return points, read
+        self._model_cache = (model_msg, prepared)
+        return prepared, read
 
     def _check_frames(self, model_frame: str, data_frame: str) -> str | None:
         """Frame ids must match the configured ones, and in synchronized mode stay constant.

@@ -309,15 +309,16 @@ OPTIONS: tuple[Option, ...] = (
     stream_option(
         "max_points",
         10000,
-        "cap on points per cloud (a random subset above it) to bound latency: 10000 registers a"
-        " pair in ~20-45 ms on one core, within a 10 Hz sensor's period; 0 = no cap",
+        "cap on points per data cloud (a random subset above it) to bound latency: 10000 registers"
+        " a pair in ~20-45 ms on one core, within a 10 Hz sensor's period; 0 = no cap. The model"
+        " is never capped (prepared once per message at full resolution)",
         bounds=(0, 100_000_000),
     ),
     stream_option(
         "voxel_size",
         0.0,
         "edge of a voxel grid (in the clouds' units, m for most sensors) applied to both clouds"
-        " before max_points: the first point of each occupied voxel is kept; 0 = off",
+        " (to data clouds before max_points): the first point of each occupied voxel is kept; 0 = off",
         bounds=(0.0, 1e9),
         rule=VOXEL_RULE,
     ),

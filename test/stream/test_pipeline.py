@@ -108,24 +108,29 @@ def test_pipeline_recovers_the_similarity_and_reports_timings():
     assert pipeline.previous is None
 
 
-def test_model_is_read_once_in_the_order_the_core_would_use():
+def test_model_is_prepared_once_per_message_at_full_resolution():
+    """max_points caps data clouds only: the model is the core's PreparedModel of all its points,
+    made for the first pair and reused by the next (its tree too)."""
     model_msg, data_msg = scene(3000)
     pipeline = RegistrationPipeline(PipelineSettings.create(max_points=2500))
     first = pipeline.process(model_msg, data_msg)
     assert isinstance(first, Registered)
     cached = pipeline._model_cache
     assert cached is not None and cached[0] is model_msg
-    points = cached[1]
-    assert not needs_spatial_order(points, rms_radius(points))  # the core will not sort it again
-    np.testing.assert_array_equal(points[spatial_order(points)], points)  # sorted: sorts to itself
+    prepared = cached[1]
+    assert len(prepared) == 3000 and first.model_points == 3000 and first.data_points == 2500
+    assert not needs_spatial_order(prepared.points, rms_radius(prepared.points))
+    np.testing.assert_array_equal(prepared.points[spatial_order(prepared.points)], prepared.points)
+    tree = prepared.tree()
     second = pipeline.process(model_msg, data_msg)
     assert isinstance(second, Registered) and pipeline._model_cache is cached  # not read again
+    assert prepared.tree() is tree
     assert second.timings.input_seconds < first.timings.input_seconds  # the data cloud only
     assert first.timings.register_cpu_seconds > 0
-    # the same answer as the core sorting the model itself
+    # the same answer as the core given the whole model as an array
     settings = PipelineSettings.create(max_points=2500, warm_start=False)
     raw = register(
-        cloud_to_points(data_msg, 3, 2500), cloud_to_points(model_msg, 3, 2500), settings.registration
+        cloud_to_points(data_msg, 3, 2500), cloud_to_points(model_msg, 3, None), settings.registration
     )
     fresh = RegistrationPipeline(settings).process(model_msg, data_msg)
     assert isinstance(fresh, Registered)
@@ -165,6 +170,9 @@ def test_pipeline_rejects_bad_input_with_reasons_and_recovers():
     degenerate = pipeline.process(model_msg, line)
     assert isinstance(degenerate, Rejected)
     assert degenerate.input == "pair" and "collinear" in degenerate.reason
+    line_model = pipeline.process(cloud(np.outer(np.arange(100.0), [1.0, 2.0, 3.0]), "map", 1), data_msg)
+    assert isinstance(line_model, Rejected)
+    assert line_model.input == "model" and "collinear" in line_model.reason
     assert isinstance(pipeline.process(model_msg, data_msg), Registered)
     moved = pipeline.process(model_msg, cloud(bumpy_surface(500), "other_lidar", 2))
     assert isinstance(moved, Rejected) and "frame mismatch" in moved.reason

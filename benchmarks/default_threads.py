@@ -1,0 +1,121 @@
+"""register with OpenMP's default threads against register pinned to one (OMP_NUM_THREADS=1), interleaved.
+
+    python benchmarks/default_threads.py            # 15 scales, 3 rounds, one busy process beside
+    python benchmarks/default_threads.py --busy 0   # without the extra load
+    python benchmarks/default_threads.py --quick    # 2 scales, one round -> build/
+    python benchmarks/default_threads.py --revision 528e37e --out build/threads_before.md
+                                                    # a core from before it limited its threads
+
+``register`` limits OpenMP (pykdtree) and BLAS to one thread itself (frisicp_core.threads), so a
+user who never heard of ``OMP_NUM_THREADS`` should get the pinned speed. Two worker processes run
+the working tree's frisicp_core, one with ``OMP_NUM_THREADS`` unset (the libraries' default: one
+thread per core) and one with ``OMP_NUM_THREADS=1``, and time ``register(data, model)`` (default
+config) on ``make bench``'s cases (benchmarks/core_speed.py: the bunny reconstruction against a
+copy scaled by s, turned 10 degrees and shifted), alternating case by case and which goes first,
+so load on this shared machine slows both alike. ``--busy N`` runs N processes spinning a CPU
+beside them, as the issue measured it ("one other busy process": 398 ms default vs 115 ms pinned
+before the core limited itself). Printed: the sum over the cases of each worker's median time,
+and their ratio (target: default within 1.1x of pinned). Exits 0 without measuring when the bunny
+is absent, saying so.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import platform
+import statistics
+import sys
+import tempfile
+from datetime import date
+from pathlib import Path
+
+from speed_ab import WORKTREE, Worker, extract_core
+
+from frisicp_bench import script
+
+BUNNY = Path("bunny") / "bun_zipper.ply"
+SCALES = [round(0.1 + 0.2 * k, 1) for k in range(15)]
+TARGET = 1.1
+
+
+def spin() -> None:
+    while True:
+        pass
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = script.parser(__file__, __doc__, "2 scales, one round", data=True, report=True)
+    parser.add_argument("--rounds", type=int, default=3, help="times each case is timed per worker (3)")
+    parser.add_argument("--busy", type=int, default=1, help="processes spinning a CPU meanwhile (1)")
+    parser.add_argument(
+        "--revision",
+        default=WORKTREE,
+        help="git revision of frisicp_core to time (default: the working tree)",
+    )
+    args = script.parse(parser, argv)
+    bunny = args.data / BUNNY
+    if not bunny.exists():
+        return script.skip(args, f"no data: {bunny} is absent")
+    with tempfile.TemporaryDirectory() as folder:
+        core, which = extract_core(args.revision, Path(folder))
+        return measure(args, bunny, core, which)
+
+
+def measure(args, bunny: Path, core: Path, which: str) -> int:
+    scales, rounds = (script.SMOKE_SCALES, 1) if args.quick else (SCALES, args.rounds)
+    workers = {"default": Worker("default", core, 0, bunny), "pinned": Worker("pinned", core, 1, bunny)}
+    busy = [multiprocessing.Process(target=spin, daemon=True) for _ in range(0 if args.quick else args.busy)]
+    for process in busy:
+        process.start()
+    times: dict[str, dict[float, list[float]]] = {name: {s: [] for s in scales} for name in workers}
+    accurate = dict.fromkeys(workers, 0)
+    try:
+        for round_ in range(rounds):
+            for k, scale in enumerate(scales):
+                order = list(workers) if (k + round_) % 2 == 0 else list(reversed(workers))
+                for name in order:
+                    reply = workers[name].time(scale)
+                    times[name][scale].append(reply["seconds"])
+                    accurate[name] += reply["rotation_deg"] < 1.0 and reply["scale_error"] < 0.01
+    finally:
+        for process in busy:
+            process.terminate()
+        for worker in workers.values():
+            worker.close()
+    total = {name: sum(statistics.median(v) for v in per.values()) for name, per in times.items()}
+    ratio = total["default"] / total["pinned"]
+    verdict = "met" if ratio <= TARGET else "MISSED"
+    lines = [
+        f"default threads: {total['default']:.2f} s, pinned (OMP_NUM_THREADS=1): {total['pinned']:.2f} s"
+        f" (sums of per-case medians over {len(scales)} cases, {rounds} round(s), {len(busy)} busy"
+        f" process(es) beside, load {os.getloadavg()[0]:.2f}); frisicp_core: {which}",
+        f"ratio default / pinned: {ratio:.3f} (target <= {TARGET}: {verdict})",
+        f"accurate (rotation < 1 deg, scale < 1 %): default {accurate['default']}, pinned {accurate['pinned']}"
+        f" of {len(scales) * rounds}",
+    ]
+    print("\n".join(lines))
+    machine = f"{platform.machine()}, {os.cpu_count()} cores, Python {platform.python_version()}"
+    report = [
+        "# register with the default threads against one pinned thread",
+        "",
+        f"Generated by `{script.command_line(args)}` on {date.today().isoformat()} ({machine}; a machine"
+        " shared with other jobs).",
+        "",
+        *[f"- {line}" for line in lines],
+        "",
+        "| s | default ms | pinned ms |",
+        "|---|---|---|",
+        *[
+            f"| {s} | {statistics.median(times['default'][s]) * 1e3:.1f} |"
+            f" {statistics.median(times['pinned'][s]) * 1e3:.1f} |"
+            for s in scales
+        ],
+    ]
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text("\n".join(report) + "\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
