@@ -96,7 +96,7 @@ def test_every_core_option_is_an_option_with_the_core_default():
     # The core's defaults, but for the stream's own budget (a library call runs to its end).
     stream_default = PipelineSettings.create().registration
     assert stream_default == replace(RegistrationConfig(), budget_seconds=settings.STREAM_BUDGET_SECONDS)
-    assert RegistrationConfig().budget_seconds is None and settings.STREAM_BUDGET_SECONDS == 5.0
+    assert RegistrationConfig().budget_seconds is None and settings.STREAM_BUDGET_SECONDS == 15.0
     assert OPTIONS_BY_NAME["backend"].choices == BACKENDS  # the core's list, not a copy
 
 

@@ -115,7 +115,7 @@ def test_a_pair_past_the_registration_budget_is_unreliable_and_clears_the_warm_s
     """budget_seconds (node parameter, frisicp bag --budget-seconds): no cloud holds the worker
     longer; the result says why it is not believed and is not the next warm start."""
     pipeline = RegistrationPipeline(PipelineSettings.create())
-    assert pipeline.settings.registration.budget_seconds == 5.0  # the stream's default
+    assert pipeline.settings.registration.budget_seconds == 15.0  # the stream's default
     assert_correct(pipeline.process(MODEL, GOOD))
     pipeline.update_settings(pipeline.settings.updated(budget_seconds=1e-9))
     outcome = pipeline.process(MODEL, GOOD)
