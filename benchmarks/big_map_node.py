@@ -148,6 +148,7 @@ def run(args: argparse.Namespace, profile: Path) -> dict[str, Any]:
     from frisicp_ros.node.demo import stop_node
     from frisicp_ros.stream.outputs import rclpy_message_types
     from frisicp_ros.stream.pointcloud2 import points_to_parts
+    from frisicp_ros.stream.stamps import stamp_ns, time_ns
 
     terrain = Terrain(0)
     map_points = terrain.map_points(args.map_points)
@@ -197,7 +198,7 @@ def run(args: argparse.Namespace, profile: Path) -> dict[str, Any]:
     lock = threading.Lock()
 
     def on_transform(msg: TransformStamped) -> None:
-        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        stamp = stamp_ns(msg)
         t = msg.transform.translation
         with lock:
             answered[stamp] = time.monotonic()
@@ -227,7 +228,7 @@ def run(args: argparse.Namespace, profile: Path) -> dict[str, Any]:
         stamp = bench.get_clock().now().to_msg()
         msg, scan = maker.cloud(truth, stamp)
         with lock:
-            sent[stamp.sec * 1_000_000_000 + stamp.nanosec] = (time.monotonic(), truth, scan[::10].copy())
+            sent[time_ns(stamp.sec, stamp.nanosec)] = (time.monotonic(), truth, scan[::10].copy())
         data_pub.publish(msg)
 
     # Warm-up: the node starts, receives the map, takes the guess and registers the first scan

@@ -202,6 +202,7 @@ def run_stream(
 
     from frisicp_ros.stream.outputs import rclpy_message_types
     from frisicp_ros.stream.pointcloud2 import points_to_parts
+    from frisicp_ros.stream.stamps import stamp_ns
 
     types = rclpy_message_types()
     context = rclpy.Context()
@@ -219,7 +220,7 @@ def run_stream(
     rms: list[float] = []
 
     def on_transform(msg: TransformStamped) -> None:
-        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        stamp = stamp_ns(msg)
         with lock:
             transforms[stamp], arrival[stamp] = msg, time.monotonic()
 

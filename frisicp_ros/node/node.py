@@ -63,8 +63,8 @@ from frisicp_ros.stream.outputs import (
 )
 from frisicp_ros.stream.pairing import Pairer
 from frisicp_ros.stream.pipeline import PairOutcome, Rejected, describe
-from frisicp_ros.stream.pointcloud2 import stamp_ns
 from frisicp_ros.stream.settings import Value, settings_from
+from frisicp_ros.stream.stamps import stamp_ns
 
 if TYPE_CHECKING:
     from frisicp_ros.node.replay import BagReplay

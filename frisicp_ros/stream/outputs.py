@@ -45,6 +45,7 @@ from frisicp_core import RegistrationResult, Similarity
 from frisicp_core.similarity import rotation_to_quaternion
 from frisicp_ros.stream.pipeline import Registered
 from frisicp_ros.stream.pointcloud2 import CloudParts, aligned_cloud
+from frisicp_ros.stream.stamps import split_ns
 
 OUTPUT_TOPICS: dict[str, str] = {
     "transform": "geometry_msgs/msg/TransformStamped",
@@ -93,8 +94,7 @@ class MessageTypes:
 
     def header(self, stamp_ns: int, frame_id: str) -> Any:
         """A header at ``stamp_ns`` nanoseconds (normalised: 0 <= nanosec < 1e9)."""
-        sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
-        return self.stamped_header((sec, nanosec), frame_id)
+        return self.stamped_header(split_ns(stamp_ns), frame_id)
 
     def stamped_header(self, stamp: tuple[int, int], frame_id: str) -> Any:
         """A header with the (sec, nanosec) of a received stamp, copied as they are."""

@@ -40,6 +40,7 @@ from frisicp_core.config import InitialGuess
 from frisicp_ros.stream.motion import MotionTracker
 from frisicp_ros.stream.pointcloud2 import CloudError, CloudPoints, read_cloud
 from frisicp_ros.stream.settings import PipelineSettings, settings_from
+from frisicp_ros.stream.stamps import time_ns
 
 RejectedInput = Literal["model", "data", "pair"]
 
@@ -75,8 +76,7 @@ class PairHeader:
 
     @property
     def stamp_ns(self) -> int:
-        sec, nanosec = self.stamp
-        return sec * 1_000_000_000 + nanosec
+        return time_ns(*self.stamp)
 
 
 @dataclass(frozen=True)

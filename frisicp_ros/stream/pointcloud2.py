@@ -342,9 +342,3 @@ def points_to_parts(
         data=table.view(np.uint8),
         is_dense=bool(np.isfinite(pts).all()),
     )
-
-
-def stamp_ns(msg: Any) -> int:
-    """The header stamp of a message as integer nanoseconds."""
-    stamp = msg.header.stamp
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)
