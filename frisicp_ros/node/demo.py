@@ -159,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"frisicp demo: register_node running (pid {node.pid}), ROS domain {args.domain_id}, loopback only")
     last: LastAlignment | None = None
     try:
-        registered, sent, last = run_stream(args)
+        registered, sent, last = publish_demo_scans(args)
     except KeyboardInterrupt:
         registered, sent = [], 0
         print("\ninterrupted")
@@ -189,7 +189,7 @@ class LastAlignment:
     truth: Similarity
 
 
-def run_stream(
+def publish_demo_scans(
     args: argparse.Namespace,
 ) -> tuple[list[tuple[Similarity, Similarity, float, float]], int, LastAlignment | None]:
     """Publish for ``args.duration`` s; return (truth, estimate, rms, latency) per answered cloud,

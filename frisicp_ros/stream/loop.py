@@ -45,13 +45,14 @@ class CloudPair(Protocol):
 PairT = TypeVar("PairT", bound=CloudPair)
 RegistrarT = TypeVar("RegistrarT")
 Registrar = Callable[[PairT], "PairOutcome | None"]
-Registered_ = Generator[tuple[PairT, "PairOutcome | None"], None, None]
+# (pair, outcome) in pair order; outcome None: the registrar dropped the pair (a reset came).
+RegisteredPairs = Generator[tuple[PairT, "PairOutcome | None"], None, None]
 # Maps a registrar over pairs, yielding (pair, outcome) in pair order: serially in this thread,
 # or over worker processes (frisicp_ros.bag.jobs.ordered_map), pair by pair or in chunks.
-PairMapper = Callable[[RegistrarT, Iterable[PairT]], Registered_[PairT]]
+PairMapper = Callable[[RegistrarT, Iterable[PairT]], RegisteredPairs[PairT]]
 
 
-def serial_map(register: Registrar[PairT], pairs: Iterable[PairT]) -> Registered_[PairT]:
+def serial_map(register: Registrar[PairT], pairs: Iterable[PairT]) -> RegisteredPairs[PairT]:
     for pair in pairs:
         yield pair, register(pair)
 
@@ -89,7 +90,7 @@ def in_chunks(
     chunk never spans two: each stream is chunked from its own first pair, as if alone.
     """
 
-    def mapped(register: ChunkRegistrar, pairs: Iterable[PairT]) -> Registered_[PairT]:
+    def mapped(register: ChunkRegistrar, pairs: Iterable[PairT]) -> RegisteredPairs[PairT]:
         chunks = mapper(register, _batched(pairs, size, stream_of))
         with closing(chunks):
             for chunk, outcomes in chunks:
