@@ -146,7 +146,7 @@ def run(args: argparse.Namespace, profile: Path) -> dict[str, Any]:
     from std_msgs.msg import Float64MultiArray
 
     from frisicp_ros.node.demo import stop_node
-    from frisicp_ros.stream.outputs import rclpy_message_types
+    from frisicp_ros.node.message_types import rclpy_message_types
     from frisicp_ros.stream.pointcloud2 import points_to_parts
     from frisicp_ros.stream.stamps import stamp_ns, time_ns
 

@@ -241,7 +241,7 @@ def run(args: argparse.Namespace, truth_name: str) -> dict[str, Any]:
 
     from frisicp_core import Similarity, bumpy_surface
     from frisicp_ros.node.demo import stop_node
-    from frisicp_ros.stream.outputs import rclpy_message_types
+    from frisicp_ros.node.message_types import rclpy_message_types
     from frisicp_ros.stream.pointcloud2 import points_to_parts
     from frisicp_ros.stream.stamps import stamp_ns, time_ns
 

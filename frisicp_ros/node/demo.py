@@ -200,7 +200,7 @@ def publish_demo_scans(
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import PointCloud2
 
-    from frisicp_ros.stream.outputs import rclpy_message_types
+    from frisicp_ros.node.message_types import rclpy_message_types
     from frisicp_ros.stream.pointcloud2 import points_to_parts
     from frisicp_ros.stream.stamps import stamp_ns
 

@@ -47,6 +47,7 @@ from sensor_msgs.msg import PointCloud2
 from std_srvs.srv import Trigger
 
 from frisicp_ros.node import parameters, shutdown
+from frisicp_ros.node.message_types import rclpy_message_types
 from frisicp_ros.node.newest_slot import NewestWinsSlot
 from frisicp_ros.node.status import NodeStatus
 from frisicp_ros.stream.guess import describe_guess, guess_from_message
@@ -57,7 +58,6 @@ from frisicp_ros.stream.outputs import (
     TF_TYPE,
     MessageTypes,
     build_outputs,
-    rclpy_message_types,
     scaled_frame,
     tf_message,
 )

@@ -24,10 +24,11 @@ import threading
 from collections.abc import Callable, Generator, Iterable, Iterator, Sequence
 from contextlib import closing
 from dataclasses import dataclass
-from typing import Any, Protocol, TypeVar
+from typing import Protocol, TypeVar
 
 from frisicp_core import Similarity
 from frisicp_core.config import InitialGuess
+from frisicp_ros.stream.messages import PointCloud2Like
 from frisicp_ros.stream.pipeline import PairOutcome, RegistrationPipeline
 from frisicp_ros.stream.settings import PipelineSettings
 
@@ -36,10 +37,10 @@ class CloudPair(Protocol):
     """A (model, data) pair of PointCloud2-like messages, plus whatever the emitter needs."""
 
     @property
-    def model_cloud(self) -> Any: ...
+    def model_cloud(self) -> PointCloud2Like: ...
 
     @property
-    def data_cloud(self) -> Any: ...
+    def data_cloud(self) -> PointCloud2Like: ...
 
 
 PairT = TypeVar("PairT", bound=CloudPair)

@@ -31,12 +31,13 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 
 from frisicp_core import PreparedModel, RegistrationResult, Similarity, register
 from frisicp_core.config import InitialGuess
+from frisicp_ros.stream.messages import CloudLayoutLike, PointCloud2Like
 from frisicp_ros.stream.motion import MotionTracker
 from frisicp_ros.stream.pointcloud2 import CloudError, CloudPoints, read_cloud
 from frisicp_ros.stream.settings import PipelineSettings, settings_from
@@ -133,7 +134,7 @@ class RegistrationPipeline:
         self.settings = settings or settings_from({})
         self._motion = MotionTracker()  # the last consecutive reliable results
         self._track: RegistrationResult | None = None  # the last reliable result (jump detection)
-        self._model_cache: tuple[Any, PreparedModel] | None = None
+        self._model_cache: tuple[PointCloud2Like, PreparedModel] | None = None
         self._frames: dict[str, str] = {}
         self._guess: InitialGuess | None = None
 
@@ -181,7 +182,7 @@ class RegistrationPipeline:
             self.reset()
         self.settings = settings
 
-    def process(self, model_msg: Any, data_msg: Any) -> PairOutcome:
+    def process(self, model_msg: PointCloud2Like, data_msg: PointCloud2Like) -> PairOutcome:
         """The outcome of one pair; only a reliable result is kept as the next warm start."""
         header = pair_header(model_msg, data_msg, self.settings.dims)
         guessed = self._guess is not None
@@ -201,7 +202,9 @@ class RegistrationPipeline:
             self._track = None
         return outcome
 
-    def _process(self, header: PairHeader, model_msg: Any, data_msg: Any) -> PairOutcome:
+    def _process(
+        self, header: PairHeader, model_msg: PointCloud2Like, data_msg: PointCloud2Like
+    ) -> PairOutcome:
         settings = self.settings
         frame_problem = self._check_frames(header.model_frame, header.data_frame)
         if frame_problem:
@@ -242,12 +245,12 @@ class RegistrationPipeline:
             timings=timings,
         )
 
-    def _read(self, msg: Any, capped: bool = True) -> CloudPoints:
+    def _read(self, msg: CloudLayoutLike, capped: bool = True) -> CloudPoints:
         settings = self.settings
         cap = settings.max_points if capped else None
         return read_cloud(msg, settings.dims, cap, settings.registration.seed, settings.voxel_size)
 
-    def _model(self, model_msg: Any) -> tuple[PreparedModel, CloudPoints | None]:
+    def _model(self, model_msg: PointCloud2Like) -> tuple[PreparedModel, CloudPoints | None]:
         """The model prepared for registration (frisicp_core.PreparedModel), once per message: in
         latest_model mode the same message serves every scan. Full resolution: ``max_points``
         caps data clouds only; a random cap of a 2,000,000-point map to 10,000 points kept one
@@ -298,7 +301,7 @@ def _timings(model: CloudPoints | None, data: CloudPoints, started: float, start
     )
 
 
-def pair_header(model_msg: Any, data_msg: Any, dims: int) -> PairHeader:
+def pair_header(model_msg: PointCloud2Like, data_msg: PointCloud2Like, dims: int) -> PairHeader:
     stamp = data_msg.header.stamp
     return PairHeader(
         stamp=(int(stamp.sec), int(stamp.nanosec)),

@@ -5,7 +5,7 @@ A ROS stamp is ``builtin_interfaces/Time`` (``sec``, ``nanosec``); these are its
 
 from __future__ import annotations
 
-from typing import Any
+from frisicp_ros.stream.messages import StampedLike
 
 NS_PER_SECOND = 1_000_000_000
 
@@ -16,7 +16,7 @@ def time_ns(sec: int, nanosec: int) -> int:
     return int(sec) * NS_PER_SECOND + int(nanosec)
 
 
-def stamp_ns(msg: Any) -> int:
+def stamp_ns(msg: StampedLike) -> int:
     """The header stamp of a message (anything with ``header.stamp.sec/nanosec``) in nanoseconds."""
     stamp = msg.header.stamp
     return time_ns(stamp.sec, stamp.nanosec)
