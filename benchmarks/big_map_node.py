@@ -92,12 +92,11 @@ def guess_message(types: Any, truth: Similarity, stamp: Any) -> Any:
     from geometry_msgs.msg import PoseWithCovarianceStamped
 
     from frisicp_core import axis_angle_rotation
-    from frisicp_core.similarity import rotation_to_quaternion
 
     msg = PoseWithCovarianceStamped()
     msg.header.stamp, msg.header.frame_id = stamp, "map"
     turn = axis_angle_rotation([0.2, 0.3, 1.0], np.deg2rad(2.0))
-    x, y, z, w = rotation_to_quaternion(turn @ truth.rotation)
+    x, y, z, w = Similarity(1.0, turn @ truth.rotation, np.zeros(3)).quaternion()
     position = truth.translation + np.array([0.3, -0.2, 0.1])
     msg.pose.pose.position.x, msg.pose.pose.position.y, msg.pose.pose.position.z = map(float, position)
     msg.pose.pose.orientation.x, msg.pose.pose.orientation.y = float(x), float(y)

@@ -99,8 +99,14 @@ from frisicp_bench.metrics import (
     pose_errors,
 )
 from frisicp_bench.report import markdown_table
-from frisicp_core import NearestNeighbors, RegistrationConfig, Similarity, axis_angle_rotation, register
-from frisicp_core.similarity import FloatArray
+from frisicp_core import (
+    FloatArray,
+    NearestNeighbors,
+    RegistrationConfig,
+    Similarity,
+    axis_angle_rotation,
+    register,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 

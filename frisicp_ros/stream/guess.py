@@ -26,8 +26,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from frisicp_core import Similarity
-from frisicp_core.config import InitialGuess
+from frisicp_core import InitialGuess, Similarity
 from frisicp_ros.stream.messages import PoseWithCovarianceStampedLike
 
 # 1-sigma, relative, of a scale the user gives (``initial_scale``, --initial's 8th value): a known

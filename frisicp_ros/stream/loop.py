@@ -26,8 +26,7 @@ from contextlib import closing
 from dataclasses import dataclass
 from typing import Protocol, TypeVar
 
-from frisicp_core import Similarity
-from frisicp_core.config import InitialGuess
+from frisicp_core import InitialGuess, Similarity
 from frisicp_ros.stream.messages import PointCloud2Like
 from frisicp_ros.stream.pipeline import PairOutcome, RegistrationPipeline
 from frisicp_ros.stream.settings import PipelineSettings

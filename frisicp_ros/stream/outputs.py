@@ -41,7 +41,6 @@ from typing import Any
 import numpy as np
 
 from frisicp_core import RegistrationResult, Similarity
-from frisicp_core.similarity import rotation_to_quaternion
 from frisicp_ros.stream.messages import HeaderLike, PointCloud2Like
 from frisicp_ros.stream.pipeline import Registered
 from frisicp_ros.stream.pointcloud2 import CloudParts, aligned_cloud
@@ -138,10 +137,10 @@ def rosbags_message_types(typestore: Any = None) -> MessageTypes:
 
 def _rigid_part(similarity: Similarity, types: MessageTypes) -> tuple[Any, Any]:
     """(translation as Vector3-like values, rotation as a Quaternion) of (R, t), embedded in 3-D."""
-    rotation, translation = _as_3d(similarity)
-    x, y, z, w = rotation_to_quaternion(rotation)
+    rigid = _rigid_3d(similarity)
+    x, y, z, w = rigid.quaternion()
     quaternion = types["geometry_msgs/msg/Quaternion"](x=float(x), y=float(y), z=float(z), w=float(w))
-    return tuple(float(v) for v in translation), quaternion
+    return tuple(float(v) for v in rigid.translation), quaternion
 
 
 def transform_stamped(
@@ -205,14 +204,14 @@ def tf_message(outcome: Registered, child_frame_id: str, types: MessageTypes) ->
     return types[TF_TYPE](transforms=[transform])
 
 
-def _as_3d(similarity: Similarity) -> tuple[np.ndarray, np.ndarray]:
-    """Rotation and translation embedded in 3-D (a 2-D rotation turns about z)."""
+def _rigid_3d(similarity: Similarity) -> Similarity:
+    """The rotation and translation (scale 1) embedded in 3-D (a 2-D rotation turns about z)."""
     if similarity.dim == 3:
-        return similarity.rotation, similarity.translation
+        return Similarity(1.0, similarity.rotation, similarity.translation)
     rotation, translation = np.eye(3), np.zeros(3)
     rotation[:2, :2] = similarity.rotation
     translation[:2] = similarity.translation
-    return rotation, translation
+    return Similarity(1.0, rotation, translation)
 
 
 def similarity_matrix(similarity: Similarity, types: MessageTypes) -> Any:

@@ -35,8 +35,7 @@ from typing import Literal
 
 import numpy as np
 
-from frisicp_core import PreparedModel, RegistrationResult, Similarity, register
-from frisicp_core.config import InitialGuess
+from frisicp_core import InitialGuess, PreparedModel, RegistrationResult, Similarity, register
 from frisicp_ros.stream.messages import CloudLayoutLike, PointCloud2Like
 from frisicp_ros.stream.motion import MotionTracker
 from frisicp_ros.stream.pointcloud2 import CloudError, CloudPoints, read_cloud

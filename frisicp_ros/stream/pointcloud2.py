@@ -19,8 +19,7 @@ from typing import Any, Literal, TypeVar
 
 import numpy as np
 
-from frisicp_core import Similarity, downsample
-from frisicp_core.voxel import voxel_filter
+from frisicp_core import Similarity, downsample, voxel_filter
 from frisicp_ros.stream.messages import CloudLayoutLike, PointCloud2Like, PointFieldLike
 
 # sensor_msgs/PointField datatype constants (identical in rclpy and rosbags).

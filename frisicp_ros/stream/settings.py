@@ -28,8 +28,7 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from frisicp_core import RegistrationConfig
-from frisicp_core.kdtree import BACKENDS
+from frisicp_core import BACKENDS, RegistrationConfig
 from frisicp_ros.stream.motion import MOTION_MODELS
 from frisicp_ros.stream.pairing import PAIRING_MODES
 
