@@ -61,9 +61,9 @@ from frisicp_ros.stream.outputs import (
     scaled_frame,
     tf_message,
 )
-from frisicp_ros.stream.pairing import Pairer
+from frisicp_ros.stream.pairing import Pairer, PairingMode
 from frisicp_ros.stream.pipeline import PairOutcome, Rejected, describe
-from frisicp_ros.stream.settings import Value, settings_from
+from frisicp_ros.stream.settings import SubscriptionQos, Value, settings_from
 from frisicp_ros.stream.stamps import stamp_ns
 
 if TYPE_CHECKING:
@@ -77,10 +77,10 @@ _WORKER_JOIN_SEC = 10.0  # a running registration is not interruptible; wait for
 _WORKER_RESTARTS = 100  # loop failures survived before the worker gives up (and says ERROR)
 
 SUBSCRIPTION_QOS = {
-    "sensor_data": qos_profile_sensor_data,  # best effort, volatile, depth 5
-    "reliable": QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE),
+    SubscriptionQos.SENSOR_DATA: qos_profile_sensor_data,  # best effort, volatile, depth 5
+    SubscriptionQos.RELIABLE: QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE),
     # A latched map: receives the last map published before this node started.
-    "transient_local": QoSProfile(
+    SubscriptionQos.TRANSIENT_LOCAL: QoSProfile(
         depth=1,
         history=HistoryPolicy.KEEP_LAST,
         reliability=ReliabilityPolicy.RELIABLE,
@@ -178,13 +178,16 @@ class RegistrationParts:
         if not values["bag"]:
             self._inputs = [
                 self.create_subscription(
-                    PointCloud2, "model", self._on_model, SUBSCRIPTION_QOS[str(values["model_qos"])]
+                    PointCloud2,
+                    "model",
+                    self._on_model,
+                    SUBSCRIPTION_QOS[SubscriptionQos(values["model_qos"])],
                 ),
                 self.create_subscription(  # two parameters: rclpy passes the message info too
                     PointCloud2,
                     "data",
                     self._on_data,  # rclpy passes (msg, info) to a two-parameter callback
-                    SUBSCRIPTION_QOS[str(values["data_qos"])],
+                    SUBSCRIPTION_QOS[SubscriptionQos(values["data_qos"])],
                 ),
             ]
         # Guesses are taken in replay mode too: the replay is a live stream for everything else.
@@ -287,7 +290,7 @@ class RegistrationParts:
         qos = self.get_parameter("model_qos").value
         hint = (
             "is the model published?"
-            if qos == "transient_local"
+            if qos == SubscriptionQos.TRANSIENT_LOCAL
             else "a map published once (latched) needs model_qos: transient_local"
         )
         self.get_logger().warning(
@@ -458,7 +461,7 @@ class RegistrationParts:
         report = self._status.report(
             self._slot.dropped,
             unpaired,
-            has_model or self._pairer.mode != "latest_model",
+            has_model or self._pairer.mode != PairingMode.LATEST_MODEL,
             guess_pending=self._registrar.pending_guess is not None,
         )
         status = DiagnosticStatus(

@@ -37,7 +37,8 @@ import numpy as np
 
 from frisicp_core import InitialGuess, PreparedModel, RegistrationResult, Similarity, register
 from frisicp_ros.stream.messages import CloudLayoutLike, PointCloud2Like
-from frisicp_ros.stream.motion import MotionTracker
+from frisicp_ros.stream.motion import MotionModel, MotionTracker
+from frisicp_ros.stream.pairing import PairingMode
 from frisicp_ros.stream.pointcloud2 import CloudError, CloudPoints, read_cloud
 from frisicp_ros.stream.settings import PipelineSettings, settings_from
 from frisicp_ros.stream.stamps import time_ns
@@ -147,7 +148,7 @@ class RegistrationPipeline:
         ``motion_model`` constant_velocity that result moved on by the last motion."""
         if not self.settings.warm_start:
             return None
-        if self.settings.motion_model == "none":
+        if self.settings.motion_model == MotionModel.NONE:
             return self.previous
         return self._motion.predict(stamp_ns)
 
@@ -281,7 +282,7 @@ class RegistrationPipeline:
                 return f"frame mismatch: {side} cloud is in '{frame}', expected '{expected}' ({side}_frame)"
             seen = self._frames.get(side)
             if seen is not None and frame != seen:
-                if settings.pairing == "synchronized":
+                if settings.pairing == PairingMode.SYNCHRONIZED:
                     return (
                         f"frame mismatch: {side} cloud is in '{frame}' but this {side} stream was in"
                         f" '{seen}' (synchronized pairing needs fixed frames; call ~/reset to accept)"
