@@ -502,14 +502,23 @@ class RegistrationNode(RegistrationParts, Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Console script ``register_node``; SIGINT, SIGTERM (any number of them) and external
-    shutdown end it quietly with code 0 (see ``shutdown``)."""
+    """Console script ``register_node``."""
+    return run_node_process(RegistrationNode, args)
+
+
+def run_node_process(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
+    """Build a node and spin it until the process is stopped: the body of a console script.
+
+    SIGINT, SIGTERM (any number of them) and external shutdown end it quietly with code 0 (see
+    ``shutdown``); a parameter value the node refuses at start-up (a bad ``--params-file``) ends
+    it with code 2 and the reason, without a traceback.
+    """
     signals = shutdown.install()  # before rclpy.init, which chains its handlers to this one
     rclpy.init(args=args)
-    node: RegistrationNode | None = None
+    node: Node | None = None
     try:
         if not signals.requested:
-            node = RegistrationNode()
+            node = make_node()
             rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
