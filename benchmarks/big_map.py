@@ -59,13 +59,13 @@ from frisicp_bench.scenes import NOISE, box_crop, protocol_similarity, real_clou
 from frisicp_bench.terrain import Terrain, scan_errors
 from frisicp_core import (
     InitialGuess,
+    NearestNeighbors,
     PreparedModel,
     RegistrationConfig,
     RegistrationResult,
     Similarity,
     register,
 )
-from frisicp_core.kdtree import NearestNeighbors
 from frisicp_ros.stream.motion import MotionTracker
 
 MAP_SIZES = (100_000, 1_000_000, 2_000_000, 4_000_000)

@@ -92,12 +92,11 @@ def guess_message(types: Any, truth: Similarity, stamp: Any) -> Any:
     from geometry_msgs.msg import PoseWithCovarianceStamped
 
     from frisicp_core import axis_angle_rotation
-    from frisicp_core.similarity import rotation_to_quaternion
 
     msg = PoseWithCovarianceStamped()
     msg.header.stamp, msg.header.frame_id = stamp, "map"
     turn = axis_angle_rotation([0.2, 0.3, 1.0], np.deg2rad(2.0))
-    x, y, z, w = rotation_to_quaternion(turn @ truth.rotation)
+    x, y, z, w = Similarity(1.0, turn @ truth.rotation, np.zeros(3)).quaternion()
     position = truth.translation + np.array([0.3, -0.2, 0.1])
     msg.pose.pose.position.x, msg.pose.pose.position.y, msg.pose.pose.position.z = map(float, position)
     msg.pose.pose.orientation.x, msg.pose.pose.orientation.y = float(x), float(y)
@@ -146,8 +145,9 @@ def run(args: argparse.Namespace, profile: Path) -> dict[str, Any]:
     from std_msgs.msg import Float64MultiArray
 
     from frisicp_ros.node.demo import stop_node
-    from frisicp_ros.stream.outputs import rclpy_message_types
+    from frisicp_ros.node.message_types import rclpy_message_types
     from frisicp_ros.stream.pointcloud2 import points_to_parts
+    from frisicp_ros.stream.stamps import stamp_ns, time_ns
 
     terrain = Terrain(0)
     map_points = terrain.map_points(args.map_points)
@@ -197,7 +197,7 @@ def run(args: argparse.Namespace, profile: Path) -> dict[str, Any]:
     lock = threading.Lock()
 
     def on_transform(msg: TransformStamped) -> None:
-        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        stamp = stamp_ns(msg)
         t = msg.transform.translation
         with lock:
             answered[stamp] = time.monotonic()
@@ -227,7 +227,7 @@ def run(args: argparse.Namespace, profile: Path) -> dict[str, Any]:
         stamp = bench.get_clock().now().to_msg()
         msg, scan = maker.cloud(truth, stamp)
         with lock:
-            sent[stamp.sec * 1_000_000_000 + stamp.nanosec] = (time.monotonic(), truth, scan[::10].copy())
+            sent[time_ns(stamp.sec, stamp.nanosec)] = (time.monotonic(), truth, scan[::10].copy())
         data_pub.publish(msg)
 
     # Warm-up: the node starts, receives the map, takes the guess and registers the first scan

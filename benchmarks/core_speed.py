@@ -40,8 +40,14 @@ from pathlib import Path
 import numpy as np
 from pykdtree.kdtree import KDTree
 
-from frisicp_core import RegistrationConfig, Similarity, axis_angle_rotation, register, rotation_angle
-from frisicp_core.io import read_points
+from frisicp_core import (
+    RegistrationConfig,
+    Similarity,
+    axis_angle_rotation,
+    read_points,
+    register,
+    rotation_angle,
+)
 
 BUNNY = Path("bunny") / "bun_zipper.ply"  # in the data folder
 SCALES = [round(0.1 + 0.2 * k, 1) for k in range(15)]

@@ -26,8 +26,7 @@ from pathlib import Path
 import numpy as np
 
 from frisicp_bench import script
-from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface
-from frisicp_core.io import read_points
+from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface, read_points
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = Path(sys.executable).parent

@@ -56,11 +56,17 @@ from threadpoolctl import threadpool_limits
 from frisicp_bench import script
 from frisicp_bench.neighbours import neighbours_class
 from frisicp_bench.report import markdown_table
-from frisicp_core import RegistrationConfig, Similarity, bumpy_surface, closed_contour, register
-from frisicp_core.io import read_points
-from frisicp_core.kdtree import NearestNeighbors
+from frisicp_core import (
+    NearestNeighbors,
+    RegistrationConfig,
+    Similarity,
+    axis_angle_rotation,
+    bumpy_surface,
+    closed_contour,
+    read_points,
+    register,
+)
 from frisicp_core.sampling import downsample, level_sizes, spatial_order
-from frisicp_core.similarity import axis_angle_rotation
 
 
 @dataclass(frozen=True)

@@ -241,8 +241,9 @@ def run(args: argparse.Namespace, truth_name: str) -> dict[str, Any]:
 
     from frisicp_core import Similarity, bumpy_surface
     from frisicp_ros.node.demo import stop_node
-    from frisicp_ros.stream.outputs import rclpy_message_types
+    from frisicp_ros.node.message_types import rclpy_message_types
     from frisicp_ros.stream.pointcloud2 import points_to_parts
+    from frisicp_ros.stream.stamps import stamp_ns, time_ns
 
     command = [
         str(Path(sys.executable).parent / "register_node"),
@@ -288,7 +289,7 @@ def run(args: argparse.Namespace, truth_name: str) -> dict[str, Any]:
     lock = threading.Lock()
 
     def on_transform(msg: TransformStamped) -> None:
-        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        stamp = stamp_ns(msg)
         translation = msg.transform.translation
         with lock:
             answered[stamp] = time.monotonic()
@@ -317,7 +318,7 @@ def run(args: argparse.Namespace, truth_name: str) -> dict[str, Any]:
         stamp = bench.get_clock().now().to_msg()
         msg = maker.cloud(truth, stamp)
         with lock:
-            sent[stamp.sec * 1_000_000_000 + stamp.nanosec] = (time.monotonic(), truth)
+            sent[time_ns(stamp.sec, stamp.nanosec)] = (time.monotonic(), truth)
         data_pub.publish(msg)
 
     # Warm-up: node start, discovery, the first (cold) registration; the truth stays at t = 0.

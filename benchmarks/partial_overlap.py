@@ -80,7 +80,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 from dataclasses import asdict, dataclass
 from datetime import date
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 import numpy as np
 import scipy
@@ -99,8 +99,14 @@ from frisicp_bench.metrics import (
     pose_errors,
 )
 from frisicp_bench.report import markdown_table
-from frisicp_core import NearestNeighbors, RegistrationConfig, Similarity, axis_angle_rotation, register
-from frisicp_core.similarity import FloatArray
+from frisicp_core import (
+    FloatArray,
+    NearestNeighbors,
+    RegistrationConfig,
+    Similarity,
+    axis_angle_rotation,
+    register,
+)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -119,6 +125,9 @@ FRISICP, OPEN3D = "frisicp", "open3d"
 LABELS = {FRISICP: "FRISICP (default)", OPEN3D: "Open3D scaled ICP"}
 
 
+Perturbation = Literal["ten_degree", "bench"]
+
+
 @dataclass(frozen=True)
 class Pair:
     """Register ``data`` onto ``model`` (file stems in bunny/), optionally corrupting the data."""
@@ -126,12 +135,14 @@ class Pair:
     data: str
     model: str
     corruption: str = "clean"  # "clean", "outliers" or "noise"
-    protocol: str = "issue"  # "bench": frisicp bench's perturbation instead (scan→map only)
+    # "ten_degree": the docstring's Protocol (exactly 10 deg, 5 % shift, scaled about the data's
+    # centroid); "bench": frisicp bench's perturbation instead (scan→map only)
+    protocol: Perturbation = "ten_degree"
 
     @property
     def name(self) -> str:
         suffix = "" if self.corruption == "clean" else f" +{self.corruption}"
-        suffix += "" if self.protocol == "issue" else f" ({self.protocol} protocol)"
+        suffix += "" if self.protocol == "ten_degree" else f" ({self.protocol} protocol)"
         return f"{self.data}→{self.model}{suffix}"
 
 
@@ -148,7 +159,7 @@ class Group:
 
 
 def _pairs(
-    names: Iterable[tuple[str, str]], corruption: str = "clean", protocol: str = "issue"
+    names: Iterable[tuple[str, str]], corruption: str = "clean", protocol: Perturbation = "ten_degree"
 ) -> tuple[Pair, ...]:
     return tuple(Pair(data, model, corruption, protocol) for data, model in names)
 

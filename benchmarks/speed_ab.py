@@ -49,8 +49,7 @@ def worker(bunny: str) -> int:
     from core_speed import forward_similarity
 
     import frisicp_core
-    from frisicp_core import register, rotation_angle
-    from frisicp_core.io import read_points
+    from frisicp_core import read_points, register, rotation_angle
 
     model = read_points(bunny)
     print(json.dumps({"core": str(Path(frisicp_core.__file__).parent)}), flush=True)

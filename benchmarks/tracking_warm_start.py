@@ -34,8 +34,7 @@ from node_latency import NOISE, moving_truth, static_truth
 
 from frisicp_bench import script
 from frisicp_bench.neighbours import counting_queries
-from frisicp_core import RegistrationConfig, bumpy_surface, downsample, register
-from frisicp_core.io import read_points
+from frisicp_core import RegistrationConfig, bumpy_surface, downsample, read_points, register
 from frisicp_ros.stream.motion import MotionTracker
 
 RAW = 100_000  # points of a scan before the cap: the node benchmark's clouds

@@ -61,9 +61,15 @@ from frisicp_bench.cases import PAPER_SCALES
 from frisicp_bench.datasets import DataMissingError, scan_pose
 from frisicp_bench.metrics import pose_errors
 from frisicp_bench.report import write_report
-from frisicp_core import RegistrationConfig, RegistrationResult, Similarity, axis_angle_rotation, register
-from frisicp_core.io import read_points
-from frisicp_core.sampling import downsample
+from frisicp_core import (
+    RegistrationConfig,
+    RegistrationResult,
+    Similarity,
+    axis_angle_rotation,
+    downsample,
+    read_points,
+    register,
+)
 
 TITLE = "Trustworthy answers on real scenes: right, or not reliable"
 CAP = 10_000

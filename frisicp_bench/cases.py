@@ -13,8 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from frisicp_core import Similarity, axis_angle_rotation
-from frisicp_core.similarity import FloatArray
+from frisicp_core import FloatArray, Similarity, axis_angle_rotation
 
 from .metrics import model_size
 

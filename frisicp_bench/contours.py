@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from scipy import ndimage
 
-from frisicp_core.similarity import FloatArray
+from frisicp_core import FloatArray
 
 
 def outer_contour(foreground: np.ndarray) -> FloatArray:

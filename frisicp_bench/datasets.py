@@ -11,9 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from frisicp_core import Similarity
-from frisicp_core.io import CloudFileError, read_points, read_scan_pose
-from frisicp_core.similarity import FloatArray
+from frisicp_core import CloudFileError, FloatArray, Similarity, read_points, read_scan_pose
 
 from .contours import outer_contour
 

@@ -15,8 +15,7 @@ matplotlib.use("Agg")  # files only; no display on CI or servers
 import matplotlib.pyplot as plt
 import numpy as np
 
-from frisicp_core import Similarity
-from frisicp_core.similarity import FloatArray
+from frisicp_core import FloatArray, Similarity
 
 from .cases import Case, Family
 from .runner import BenchmarkRun, CaseRecord

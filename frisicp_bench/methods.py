@@ -13,8 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from frisicp_core import Method, RegistrationConfig, Similarity, register
-from frisicp_core.similarity import FloatArray
+from frisicp_core import FloatArray, Method, RegistrationConfig, Similarity, register
 
 # Iteration cap of every method (frisicp_core's default); Open3D is given the same.
 MAX_ITERATIONS = 100

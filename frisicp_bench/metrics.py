@@ -10,8 +10,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from frisicp_core import Similarity, nearest, rotation_angle
-from frisicp_core.similarity import FloatArray
+from frisicp_core import FloatArray, Similarity, nearest, rotation_angle
 
 # Success thresholds of the benchmark (issue 5): rotation, relative scale, translation relative
 # to the model size.

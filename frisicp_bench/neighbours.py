@@ -24,8 +24,7 @@ from typing import ClassVar
 
 import numpy as np
 
-from frisicp_core.kdtree import NearestNeighbors
-from frisicp_core.similarity import FloatArray
+from frisicp_core import FloatArray, NearestNeighbors
 
 
 @contextmanager

@@ -12,8 +12,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from frisicp_core import ConvergenceCriteria, Method, RegistrationConfig, Similarity, register
-from frisicp_core.similarity import FloatArray
+from frisicp_core import ConvergenceCriteria, FloatArray, Method, RegistrationConfig, Similarity, register
 
 from .metrics import symmetric_rms
 

@@ -28,9 +28,7 @@ from pathlib import Path
 
 import numpy as np
 
-from frisicp_core import Similarity
-from frisicp_core.io import read_points
-from frisicp_core.similarity import FloatArray
+from frisicp_core import FloatArray, Similarity, read_points
 
 from .cases import random_rotation
 from .datasets import require

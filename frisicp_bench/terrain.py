@@ -23,8 +23,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.ndimage import gaussian_filter
 
-from frisicp_core import Similarity, axis_angle_rotation
-from frisicp_core.similarity import FloatArray
+from frisicp_core import FloatArray, Similarity, axis_angle_rotation
 
 SIDE = 100.0  # metres
 GRID = 0.1  # metres between the height field's samples

@@ -7,21 +7,26 @@ from .ambiguity import Competitor
 from .config import ConvergenceCriteria, InitialGuess, Initialization, Method, RegistrationConfig, Tolerance
 from .estimate import estimate_similarity
 from .fit import Fit
-from .kdtree import NearestNeighbors, nearest
+from .io import CloudFileError, read_points, read_scan_pose
+from .kdtree import BACKENDS, NearestNeighbors, nearest
 from .points import as_point_set
 from .prepared import PreparedModel
 from .registration import better_of, register, worse_than_track
 from .result import IterationRecord, LevelReport, RegistrationResult
 from .sampling import downsample
 from .shapes import bumpy_surface, closed_contour
-from .similarity import Similarity, axis_angle_rotation, rotation_angle
+from .similarity import FloatArray, Similarity, axis_angle_rotation, rotation_angle
 from .uncertainty import Uncertainty
 from .verdict import Verdict, judge
+from .voxel import voxel_filter
 
 __all__ = [
+    "BACKENDS",
+    "CloudFileError",
     "Competitor",
     "ConvergenceCriteria",
     "Fit",
+    "FloatArray",
     "InitialGuess",
     "Initialization",
     "IterationRecord",
@@ -44,8 +49,11 @@ __all__ = [
     "estimate_similarity",
     "judge",
     "nearest",
+    "read_points",
+    "read_scan_pose",
     "register",
     "rotation_angle",
+    "voxel_filter",
     "worse_than_track",
 ]
 __version__ = "0.1.0"

@@ -25,7 +25,7 @@ from contextlib import AbstractContextManager
 from dataclasses import dataclass
 from typing import Any, NamedTuple, Protocol
 
-from frisicp_core.config import InitialGuess
+from frisicp_core import InitialGuess
 from frisicp_ros.bag.jobs import ordered_map
 from frisicp_ros.bag.locate import BagSource
 from frisicp_ros.bag.pairs import BagPair, PlainCloud

@@ -24,6 +24,7 @@ from frisicp_ros.bag.reader import BagError, damage_of, read_messages
 from frisicp_ros.stream.pairing import Pairer
 from frisicp_ros.stream.pointcloud2 import CloudParts, layout_of
 from frisicp_ros.stream.settings import PipelineSettings
+from frisicp_ros.stream.stamps import stamp_ns
 
 
 @dataclass(frozen=True)
@@ -56,7 +57,7 @@ class PlainCloud(CloudParts):
 
     @property
     def stamp_ns(self) -> int:
-        return self.header.stamp.sec * 1_000_000_000 + self.header.stamp.nanosec
+        return stamp_ns(self)
 
 
 class RepeatCounter:

@@ -38,6 +38,7 @@ from frisicp_ros.bag.reader import BagError, open_bag, require_pointcloud2_topic
 from frisicp_ros.bag.stop import StopRequest
 from frisicp_ros.stream.loop import run_stream
 from frisicp_ros.stream.outputs import ALWAYS_PUBLISHED, build_outputs, scaled_frame, tf_message
+from frisicp_ros.stream.pairing import PairingMode
 from frisicp_ros.stream.pipeline import PairOutcome, Registered
 from frisicp_ros.stream.settings import PipelineSettings
 
@@ -354,7 +355,7 @@ def say(line: str, progress: tqdm | None = None) -> None:
 def no_pairs_hint(settings: PipelineSettings, reading: PairReading) -> str:
     if reading.model_clouds == 0 or reading.data_clouds == 0:
         return f"{reading.model_clouds} model and {reading.data_clouds} data clouds in the bag"
-    if settings.pairing == "latest_model":
+    if settings.pairing == PairingMode.LATEST_MODEL:
         return "every data cloud came before the first model cloud"
     return (
         f"no model and data header stamps within --sync-tolerance {settings.sync_tolerance} s "

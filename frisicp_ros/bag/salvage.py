@@ -36,6 +36,7 @@ from rosbags.typesys import Stores
 from frisicp_ros.bag.connections import Connection, Damage, Raw, topic_infos, typestore_for
 from frisicp_ros.bag.mcap_bag import MAGIC as MCAP_MAGIC
 from frisicp_ros.bag.mcap_bag import scan as mcap_records
+from frisicp_ros.stream.stamps import time_ns
 
 ROS1_MAGIC = b"#ROSBAG V2.0\n"
 SQLITE_MAGIC = b"SQLite format 3\x00"
@@ -182,7 +183,7 @@ def _ros1_chunk(
                 yield connections[conn]
         elif op == _ROS1_MESSAGE:
             sec, nanosec = struct.unpack("<II", header["time"])
-            yield connections[_uint32(header["conn"])], sec * 10**9 + nanosec, data
+            yield connections[_uint32(header["conn"])], time_ns(sec, nanosec), data
 
 
 def _ros1_header(stream: BinaryIO, at: int) -> dict[str, bytes]:

@@ -25,7 +25,7 @@ from frisicp_ros.cli.options import add_guess_options, add_options, given_values
 from frisicp_ros.stream.settings import PipelineSettings, Surface, settings_from
 
 if TYPE_CHECKING:
-    from frisicp_core.config import InitialGuess
+    from frisicp_core import InitialGuess
     from frisicp_ros.bag.executors import Executor
     from frisicp_ros.bag.run import BagJob
 

@@ -11,7 +11,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
-from frisicp_core.config import InitialGuess
+from frisicp_core import InitialGuess
 from frisicp_ros.cli.command import CommandError
 from frisicp_ros.stream.guess import POSE_FORMAT, SIGMA_FORMAT, parse_initial
 from frisicp_ros.stream.settings import OPTIONS_BY_NAME, Group, Option, Surface, Value, options_for

@@ -9,8 +9,7 @@ from pathlib import Path
 
 import numpy as np
 
-from frisicp_core import RegistrationConfig, register
-from frisicp_core.io import CloudFileError, read_points
+from frisicp_core import CloudFileError, RegistrationConfig, read_points, register
 from frisicp_ros.cli.command import CommandError
 from frisicp_ros.cli.options import add_guess_options, add_options, flag_of, given_values, guess_from_args
 from frisicp_ros.stream.outputs import result_summary

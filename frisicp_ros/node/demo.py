@@ -159,7 +159,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"frisicp demo: register_node running (pid {node.pid}), ROS domain {args.domain_id}, loopback only")
     last: LastAlignment | None = None
     try:
-        registered, sent, last = run_stream(args)
+        registered, sent, last = publish_demo_scans(args)
     except KeyboardInterrupt:
         registered, sent = [], 0
         print("\ninterrupted")
@@ -189,7 +189,7 @@ class LastAlignment:
     truth: Similarity
 
 
-def run_stream(
+def publish_demo_scans(
     args: argparse.Namespace,
 ) -> tuple[list[tuple[Similarity, Similarity, float, float]], int, LastAlignment | None]:
     """Publish for ``args.duration`` s; return (truth, estimate, rms, latency) per answered cloud,
@@ -200,8 +200,9 @@ def run_stream(
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import PointCloud2
 
-    from frisicp_ros.stream.outputs import rclpy_message_types
+    from frisicp_ros.node.message_types import rclpy_message_types
     from frisicp_ros.stream.pointcloud2 import points_to_parts
+    from frisicp_ros.stream.stamps import stamp_ns
 
     types = rclpy_message_types()
     context = rclpy.Context()
@@ -219,7 +220,7 @@ def run_stream(
     rms: list[float] = []
 
     def on_transform(msg: TransformStamped) -> None:
-        stamp = msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
+        stamp = stamp_ns(msg)
         with lock:
             transforms[stamp], arrival[stamp] = msg, time.monotonic()
 

@@ -21,14 +21,11 @@ import sys
 from collections.abc import Callable
 from typing import Any
 
-import rclpy
-import rclpy.logging
-from rclpy.executors import ExternalShutdownException
 from rclpy.lifecycle import LifecycleNode, LifecycleState, TransitionCallbackReturn
 from rclpy.parameter import Parameter
 
-from frisicp_ros.node import parameters, shutdown
-from frisicp_ros.node.node import NODE_NAME, RegistrationParts
+from frisicp_ros.node import parameters
+from frisicp_ros.node.node import NODE_NAME, RegistrationParts, run_node_process
 from frisicp_ros.stream.pipeline import describe
 
 
@@ -91,26 +88,9 @@ class RegistrationLifecycleNode(RegistrationParts, LifecycleNode):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Console script ``register_lifecycle_node``: starts unconfigured; SIGINT/SIGTERM end it
-    with code 0 (see ``shutdown``)."""
-    signals = shutdown.install()
-    rclpy.init(args=args)
-    node: RegistrationLifecycleNode | None = None
-    try:
-        if not signals.requested:
-            node = RegistrationLifecycleNode()
-            rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except Exception:
-        if not signals.requested:
-            raise
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
-        shutdown.ignore_from_now_on()
-    return 0
+    """Console script ``register_lifecycle_node``: starts unconfigured; stops as register_node
+    does (``run_node_process``)."""
+    return run_node_process(RegistrationLifecycleNode, args)
 
 
 if __name__ == "__main__":

@@ -47,6 +47,7 @@ from sensor_msgs.msg import PointCloud2
 from std_srvs.srv import Trigger
 
 from frisicp_ros.node import parameters, shutdown
+from frisicp_ros.node.message_types import rclpy_message_types
 from frisicp_ros.node.newest_slot import NewestWinsSlot
 from frisicp_ros.node.status import NodeStatus
 from frisicp_ros.stream.guess import describe_guess, guess_from_message
@@ -57,14 +58,13 @@ from frisicp_ros.stream.outputs import (
     TF_TYPE,
     MessageTypes,
     build_outputs,
-    rclpy_message_types,
     scaled_frame,
     tf_message,
 )
-from frisicp_ros.stream.pairing import Pairer
+from frisicp_ros.stream.pairing import Pairer, PairingMode
 from frisicp_ros.stream.pipeline import PairOutcome, Rejected, describe
-from frisicp_ros.stream.pointcloud2 import stamp_ns
-from frisicp_ros.stream.settings import Value, settings_from
+from frisicp_ros.stream.settings import SubscriptionQos, Value, settings_from
+from frisicp_ros.stream.stamps import stamp_ns
 
 if TYPE_CHECKING:
     from frisicp_ros.node.replay import BagReplay
@@ -77,10 +77,10 @@ _WORKER_JOIN_SEC = 10.0  # a running registration is not interruptible; wait for
 _WORKER_RESTARTS = 100  # loop failures survived before the worker gives up (and says ERROR)
 
 SUBSCRIPTION_QOS = {
-    "sensor_data": qos_profile_sensor_data,  # best effort, volatile, depth 5
-    "reliable": QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE),
+    SubscriptionQos.SENSOR_DATA: qos_profile_sensor_data,  # best effort, volatile, depth 5
+    SubscriptionQos.RELIABLE: QoSProfile(depth=5, reliability=ReliabilityPolicy.RELIABLE),
     # A latched map: receives the last map published before this node started.
-    "transient_local": QoSProfile(
+    SubscriptionQos.TRANSIENT_LOCAL: QoSProfile(
         depth=1,
         history=HistoryPolicy.KEEP_LAST,
         reliability=ReliabilityPolicy.RELIABLE,
@@ -178,13 +178,16 @@ class RegistrationParts:
         if not values["bag"]:
             self._inputs = [
                 self.create_subscription(
-                    PointCloud2, "model", self._on_model, SUBSCRIPTION_QOS[str(values["model_qos"])]
+                    PointCloud2,
+                    "model",
+                    self._on_model,
+                    SUBSCRIPTION_QOS[SubscriptionQos(values["model_qos"])],
                 ),
                 self.create_subscription(  # two parameters: rclpy passes the message info too
                     PointCloud2,
                     "data",
                     self._on_data,  # rclpy passes (msg, info) to a two-parameter callback
-                    SUBSCRIPTION_QOS[str(values["data_qos"])],
+                    SUBSCRIPTION_QOS[SubscriptionQos(values["data_qos"])],
                 ),
             ]
         # Guesses are taken in replay mode too: the replay is a live stream for everything else.
@@ -287,7 +290,7 @@ class RegistrationParts:
         qos = self.get_parameter("model_qos").value
         hint = (
             "is the model published?"
-            if qos == "transient_local"
+            if qos == SubscriptionQos.TRANSIENT_LOCAL
             else "a map published once (latched) needs model_qos: transient_local"
         )
         self.get_logger().warning(
@@ -458,7 +461,7 @@ class RegistrationParts:
         report = self._status.report(
             self._slot.dropped,
             unpaired,
-            has_model or self._pairer.mode != "latest_model",
+            has_model or self._pairer.mode != PairingMode.LATEST_MODEL,
             guess_pending=self._registrar.pending_guess is not None,
         )
         status = DiagnosticStatus(
@@ -499,14 +502,23 @@ class RegistrationNode(RegistrationParts, Node):
 
 
 def main(args: list[str] | None = None) -> int:
-    """Console script ``register_node``; SIGINT, SIGTERM (any number of them) and external
-    shutdown end it quietly with code 0 (see ``shutdown``)."""
+    """Console script ``register_node``."""
+    return run_node_process(RegistrationNode, args)
+
+
+def run_node_process(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
+    """Build a node and spin it until the process is stopped: the body of a console script.
+
+    SIGINT, SIGTERM (any number of them) and external shutdown end it quietly with code 0 (see
+    ``shutdown``); a parameter value the node refuses at start-up (a bad ``--params-file``) ends
+    it with code 2 and the reason, without a traceback.
+    """
     signals = shutdown.install()  # before rclpy.init, which chains its handlers to this one
     rclpy.init(args=args)
-    node: RegistrationNode | None = None
+    node: Node | None = None
     try:
         if not signals.requested:
-            node = RegistrationNode()
+            node = make_node()
             rclpy.spin(node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass

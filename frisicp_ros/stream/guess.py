@@ -23,12 +23,11 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
-from typing import Any
 
 import numpy as np
 
-from frisicp_core import Similarity
-from frisicp_core.config import InitialGuess
+from frisicp_core import InitialGuess, Similarity
+from frisicp_ros.stream.messages import PoseWithCovarianceStampedLike
 
 # 1-sigma, relative, of a scale the user gives (``initial_scale``, --initial's 8th value): a known
 # mounting or map scale, not a measurement. The core searches scales only when the scale is unknown.
@@ -62,7 +61,9 @@ def guess_from_pose(
     return InitialGuess(similarity, rotation_deg, translation, scale=scale_sigma if known else None)
 
 
-def guess_from_message(msg: Any, dims: int, scale: float | None = None) -> InitialGuess:
+def guess_from_message(
+    msg: PoseWithCovarianceStampedLike, dims: int, scale: float | None = None
+) -> InitialGuess:
     """:func:`guess_from_pose` of a PoseWithCovarianceStamped (rclpy or rosbags)."""
     pose = msg.pose.pose
     p, q = pose.position, pose.orientation

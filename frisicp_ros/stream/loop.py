@@ -24,10 +24,10 @@ import threading
 from collections.abc import Callable, Generator, Iterable, Iterator, Sequence
 from contextlib import closing
 from dataclasses import dataclass
-from typing import Any, Protocol, TypeVar
+from typing import Protocol, TypeVar
 
-from frisicp_core import Similarity
-from frisicp_core.config import InitialGuess
+from frisicp_core import InitialGuess, Similarity
+from frisicp_ros.stream.messages import PointCloud2Like
 from frisicp_ros.stream.pipeline import PairOutcome, RegistrationPipeline
 from frisicp_ros.stream.settings import PipelineSettings
 
@@ -36,22 +36,23 @@ class CloudPair(Protocol):
     """A (model, data) pair of PointCloud2-like messages, plus whatever the emitter needs."""
 
     @property
-    def model_cloud(self) -> Any: ...
+    def model_cloud(self) -> PointCloud2Like: ...
 
     @property
-    def data_cloud(self) -> Any: ...
+    def data_cloud(self) -> PointCloud2Like: ...
 
 
 PairT = TypeVar("PairT", bound=CloudPair)
 RegistrarT = TypeVar("RegistrarT")
 Registrar = Callable[[PairT], "PairOutcome | None"]
-Registered_ = Generator[tuple[PairT, "PairOutcome | None"], None, None]
+# (pair, outcome) in pair order; outcome None: the registrar dropped the pair (a reset came).
+RegisteredPairs = Generator[tuple[PairT, "PairOutcome | None"], None, None]
 # Maps a registrar over pairs, yielding (pair, outcome) in pair order: serially in this thread,
 # or over worker processes (frisicp_ros.bag.jobs.ordered_map), pair by pair or in chunks.
-PairMapper = Callable[[RegistrarT, Iterable[PairT]], Registered_[PairT]]
+PairMapper = Callable[[RegistrarT, Iterable[PairT]], RegisteredPairs[PairT]]
 
 
-def serial_map(register: Registrar[PairT], pairs: Iterable[PairT]) -> Registered_[PairT]:
+def serial_map(register: Registrar[PairT], pairs: Iterable[PairT]) -> RegisteredPairs[PairT]:
     for pair in pairs:
         yield pair, register(pair)
 
@@ -89,7 +90,7 @@ def in_chunks(
     chunk never spans two: each stream is chunked from its own first pair, as if alone.
     """
 
-    def mapped(register: ChunkRegistrar, pairs: Iterable[PairT]) -> Registered_[PairT]:
+    def mapped(register: ChunkRegistrar, pairs: Iterable[PairT]) -> RegisteredPairs[PairT]:
         chunks = mapper(register, _batched(pairs, size, stream_of))
         with closing(chunks):
             for chunk, outcomes in chunks:

@@ -24,12 +24,21 @@ implausible warm-started result cold. It needs increasing header stamps (a gap <
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import Enum
 
 import numpy as np
 
 from frisicp_core import Similarity, axis_angle_rotation
 
-MOTION_MODELS = ("constant_velocity", "none")
+
+class MotionModel(str, Enum):
+    """How a warm start follows a moving sensor; the values are the ``motion_model`` parameter's."""
+
+    CONSTANT_VELOCITY = "constant_velocity"  # the last result moved on by the recent velocity
+    NONE = "none"  # the last result as it is
+
+
+MOTION_MODELS: tuple[str, ...] = tuple(model.value for model in MotionModel)
 SMOOTHING = 0.5  # weight of the newest motion in the velocity estimate
 MAX_GAP_RATIO = 4.0  # a gap this many times the last one (missed scans, a pause): no prediction
 MAX_TURN_RAD = np.pi / 2  # a turn this large between two results is no steady motion

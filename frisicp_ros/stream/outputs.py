@@ -34,7 +34,6 @@ Every stamped output carries the data cloud's header stamp.
 
 from __future__ import annotations
 
-import array
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -42,9 +41,10 @@ from typing import Any
 import numpy as np
 
 from frisicp_core import RegistrationResult, Similarity
-from frisicp_core.similarity import rotation_to_quaternion
+from frisicp_ros.stream.messages import HeaderLike, PointCloud2Like
 from frisicp_ros.stream.pipeline import Registered
 from frisicp_ros.stream.pointcloud2 import CloudParts, aligned_cloud
+from frisicp_ros.stream.stamps import split_ns
 
 OUTPUT_TOPICS: dict[str, str] = {
     "transform": "geometry_msgs/msg/TransformStamped",
@@ -61,7 +61,8 @@ TF_TYPE = "tf2_msgs/msg/TFMessage"
 # Suffix of the default /tf child frame: "<data frame>_scaled" (see the module doc).
 SCALED_FRAME_SUFFIX = "_scaled"
 UNKNOWN = -1.0  # a standard deviation or covariance that was not estimated
-_NEEDED_TYPES = (
+# Every type the outputs are built of, parts included (and TF_TYPE, where it is available).
+OUTPUT_MESSAGE_TYPES = (
     "builtin_interfaces/msg/Time",
     "std_msgs/msg/Header",
     "geometry_msgs/msg/Vector3",
@@ -93,8 +94,7 @@ class MessageTypes:
 
     def header(self, stamp_ns: int, frame_id: str) -> Any:
         """A header at ``stamp_ns`` nanoseconds (normalised: 0 <= nanosec < 1e9)."""
-        sec, nanosec = divmod(int(stamp_ns), 1_000_000_000)
-        return self.stamped_header((sec, nanosec), frame_id)
+        return self.stamped_header(split_ns(stamp_ns), frame_id)
 
     def stamped_header(self, stamp: tuple[int, int], frame_id: str) -> Any:
         """A header with the (sec, nanosec) of a received stamp, copied as they are."""
@@ -102,7 +102,7 @@ class MessageTypes:
         time_msg = self["builtin_interfaces/msg/Time"](sec=int(sec), nanosec=int(nanosec))
         return self["std_msgs/msg/Header"](stamp=time_msg, frame_id=frame_id)
 
-    def point_cloud(self, parts: CloudParts, header: Any) -> Any:
+    def point_cloud(self, parts: CloudParts, header: HeaderLike) -> Any:
         field_class = self["sensor_msgs/msg/PointField"]
         fields = [
             field_class(name=f.name, offset=f.offset, datatype=f.datatype, count=f.count)
@@ -121,46 +121,13 @@ class MessageTypes:
         )
 
 
-def _rclpy_array(typecode: str, dtype: type[np.generic]) -> Callable[[np.ndarray], array.array[Any]]:
-    """array.array is stored as is by rclpy's generated setters; frombytes is one memcpy.
-
-    (Bytes, lists and memoryviews go through per-element checks instead: see docs/node.md.)
-    """
-
-    def convert(values: np.ndarray) -> array.array[Any]:
-        out = array.array(typecode)
-        out.frombytes(np.ascontiguousarray(values, dtype=dtype).data.cast("B"))
-        return out
-
-    return convert
-
-
-def rclpy_message_types() -> MessageTypes:
-    """The rclpy classes (imported here, lazily, so this module works without ROS).
-
-    tf2_msgs is not on PyPI: when it is not importable, TFMessage is missing from the result
-    (``TF_TYPE in types`` says whether it is there).
-    """
-    from importlib import import_module
-
-    classes = {}
-    for name in (*_NEEDED_TYPES, TF_TYPE):
-        package, _, message = name.split("/")
-        try:
-            classes[name] = getattr(import_module(f"{package}.msg"), message)
-        except ImportError:
-            if name != TF_TYPE:
-                raise
-    return MessageTypes(classes, _rclpy_array("B", np.uint8), _rclpy_array("d", np.float64))
-
-
 def rosbags_message_types(typestore: Any = None) -> MessageTypes:
     """The rosbags classes of ``typestore`` (default: the ROS 2 Jazzy store)."""
     if typestore is None:
         from rosbags.typesys import Stores, get_typestore
 
         typestore = get_typestore(Stores.ROS2_JAZZY)
-    classes = {name: typestore.types[name] for name in (*_NEEDED_TYPES, TF_TYPE)}
+    classes = {name: typestore.types[name] for name in (*OUTPUT_MESSAGE_TYPES, TF_TYPE)}
     return MessageTypes(
         classes,
         lambda values: np.ascontiguousarray(values, dtype=np.uint8),
@@ -170,13 +137,15 @@ def rosbags_message_types(typestore: Any = None) -> MessageTypes:
 
 def _rigid_part(similarity: Similarity, types: MessageTypes) -> tuple[Any, Any]:
     """(translation as Vector3-like values, rotation as a Quaternion) of (R, t), embedded in 3-D."""
-    rotation, translation = _as_3d(similarity)
-    x, y, z, w = rotation_to_quaternion(rotation)
+    rigid = _rigid_3d(similarity)
+    x, y, z, w = rigid.quaternion()
     quaternion = types["geometry_msgs/msg/Quaternion"](x=float(x), y=float(y), z=float(z), w=float(w))
-    return tuple(float(v) for v in translation), quaternion
+    return tuple(float(v) for v in rigid.translation), quaternion
 
 
-def transform_stamped(similarity: Similarity, header: Any, child_frame_id: str, types: MessageTypes) -> Any:
+def transform_stamped(
+    similarity: Similarity, header: HeaderLike, child_frame_id: str, types: MessageTypes
+) -> Any:
     (x, y, z), quaternion = _rigid_part(similarity, types)
     transform = types["geometry_msgs/msg/Transform"](
         translation=types["geometry_msgs/msg/Vector3"](x=x, y=y, z=z), rotation=quaternion
@@ -196,7 +165,7 @@ def pose_covariance(result: RegistrationResult) -> np.ndarray:
     return np.asarray(result.uncertainty.pose_covariance(result.similarity), dtype=np.float64)
 
 
-def pose_with_covariance(result: RegistrationResult, header: Any, types: MessageTypes) -> Any:
+def pose_with_covariance(result: RegistrationResult, header: HeaderLike, types: MessageTypes) -> Any:
     (x, y, z), quaternion = _rigid_part(result.similarity, types)
     pose = types["geometry_msgs/msg/Pose"](
         position=types["geometry_msgs/msg/Point"](x=x, y=y, z=z), orientation=quaternion
@@ -215,7 +184,7 @@ def scale_sigma(result: RegistrationResult) -> tuple[float, float]:
     return result.similarity.scale * relative, relative
 
 
-def vector3_stamped(values: tuple[float, float, float], header: Any, types: MessageTypes) -> Any:
+def vector3_stamped(values: tuple[float, float, float], header: HeaderLike, types: MessageTypes) -> Any:
     x, y, z = (float(v) for v in values)
     vector = types["geometry_msgs/msg/Vector3"](x=x, y=y, z=z)
     return types["geometry_msgs/msg/Vector3Stamped"](header=header, vector=vector)
@@ -235,14 +204,14 @@ def tf_message(outcome: Registered, child_frame_id: str, types: MessageTypes) ->
     return types[TF_TYPE](transforms=[transform])
 
 
-def _as_3d(similarity: Similarity) -> tuple[np.ndarray, np.ndarray]:
-    """Rotation and translation embedded in 3-D (a 2-D rotation turns about z)."""
+def _rigid_3d(similarity: Similarity) -> Similarity:
+    """The rotation and translation (scale 1) embedded in 3-D (a 2-D rotation turns about z)."""
     if similarity.dim == 3:
-        return similarity.rotation, similarity.translation
+        return Similarity(1.0, similarity.rotation, similarity.translation)
     rotation, translation = np.eye(3), np.zeros(3)
     rotation[:2, :2] = similarity.rotation
     translation[:2] = similarity.translation
-    return rotation, translation
+    return Similarity(1.0, rotation, translation)
 
 
 def similarity_matrix(similarity: Similarity, types: MessageTypes) -> Any:
@@ -259,7 +228,7 @@ def similarity_matrix(similarity: Similarity, types: MessageTypes) -> Any:
 
 def build_outputs(
     outcome: Registered,
-    data_cloud: Any,
+    data_cloud: PointCloud2Like,
     types: MessageTypes,
     topics: tuple[str, ...] = ALWAYS_PUBLISHED,
 ) -> dict[str, Any]:

@@ -16,17 +16,26 @@ from __future__ import annotations
 
 from collections import deque
 from collections.abc import Sequence
-from typing import Generic, Literal, TypeVar
+from enum import Enum
+from typing import Generic, TypeVar
 
 ModelT = TypeVar("ModelT")
 DataT = TypeVar("DataT")
-PairingMode = Literal["latest_model", "synchronized"]
-PAIRING_MODES: tuple[str, ...] = ("latest_model", "synchronized")
+
+
+class PairingMode(str, Enum):
+    """How data clouds find their model (module doc); the values are the ``pairing`` parameter's."""
+
+    LATEST_MODEL = "latest_model"
+    SYNCHRONIZED = "synchronized"
+
+
+PAIRING_MODES: tuple[str, ...] = tuple(mode.value for mode in PairingMode)
 
 
 class Pairer(Generic[ModelT, DataT]):
     def __init__(
-        self, mode: str = "latest_model", tolerance_sec: float = 0.05, buffer_size: int = 10
+        self, mode: str = PairingMode.LATEST_MODEL.value, tolerance_sec: float = 0.05, buffer_size: int = 10
     ) -> None:
         if buffer_size < 1:
             raise ValueError(f"buffer_size must be >= 1, got {buffer_size}")
@@ -34,7 +43,7 @@ class Pairer(Generic[ModelT, DataT]):
         self._models: deque[tuple[int, ModelT]] = deque()
         self._data: deque[tuple[int, DataT]] = deque(maxlen=buffer_size)
         self.unpaired_data = 0  # data clouds that found no model (dropped)
-        self.mode = "latest_model"
+        self.mode = PairingMode.LATEST_MODEL.value
         self.tolerance_ns = 0
         self.reconfigure(mode, tolerance_sec)
 
@@ -53,8 +62,10 @@ class Pairer(Generic[ModelT, DataT]):
         self.mode = mode
         self.tolerance_ns = round(tolerance_sec * 1e9)
         # A deque with maxlen keeps the newest items: latest_model keeps the newest model.
-        self._models = deque(self._models, maxlen=1 if mode == "latest_model" else self._buffer_size)
-        if mode == "latest_model":
+        self._models = deque(
+            self._models, maxlen=1 if mode == PairingMode.LATEST_MODEL else self._buffer_size
+        )
+        if mode == PairingMode.LATEST_MODEL:
             self.unpaired_data += len(self._data)
             self._data.clear()
 
@@ -69,7 +80,7 @@ class Pairer(Generic[ModelT, DataT]):
 
     def add_model(self, stamp_ns: int, item: ModelT) -> list[tuple[ModelT, DataT]]:
         """Store a model; in synchronized mode, return the pair it completes (if any)."""
-        if self.mode == "latest_model":
+        if self.mode == PairingMode.LATEST_MODEL:
             self._models.append((stamp_ns, item))
             return []
         match = _closest(self._data, stamp_ns, self.tolerance_ns)
@@ -82,7 +93,7 @@ class Pairer(Generic[ModelT, DataT]):
 
     def add_data(self, stamp_ns: int, item: DataT) -> list[tuple[ModelT, DataT]]:
         """Return the pair(s) this data cloud completes: ``[(model_item, data_item)]`` or ``[]``."""
-        if self.mode == "latest_model":
+        if self.mode == PairingMode.LATEST_MODEL:
             if not self._models:
                 self.unpaired_data += 1
                 return []

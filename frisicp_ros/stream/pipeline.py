@@ -31,15 +31,17 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field, replace
-from typing import Any, Literal
+from typing import Literal
 
 import numpy as np
 
-from frisicp_core import PreparedModel, RegistrationResult, Similarity, register
-from frisicp_core.config import InitialGuess
-from frisicp_ros.stream.motion import MotionTracker
+from frisicp_core import InitialGuess, PreparedModel, RegistrationResult, Similarity, register
+from frisicp_ros.stream.messages import CloudLayoutLike, PointCloud2Like
+from frisicp_ros.stream.motion import MotionModel, MotionTracker
+from frisicp_ros.stream.pairing import PairingMode
 from frisicp_ros.stream.pointcloud2 import CloudError, CloudPoints, read_cloud
 from frisicp_ros.stream.settings import PipelineSettings, settings_from
+from frisicp_ros.stream.stamps import time_ns
 
 RejectedInput = Literal["model", "data", "pair"]
 
@@ -75,8 +77,7 @@ class PairHeader:
 
     @property
     def stamp_ns(self) -> int:
-        sec, nanosec = self.stamp
-        return sec * 1_000_000_000 + nanosec
+        return time_ns(*self.stamp)
 
 
 @dataclass(frozen=True)
@@ -133,7 +134,7 @@ class RegistrationPipeline:
         self.settings = settings or settings_from({})
         self._motion = MotionTracker()  # the last consecutive reliable results
         self._track: RegistrationResult | None = None  # the last reliable result (jump detection)
-        self._model_cache: tuple[Any, PreparedModel] | None = None
+        self._model_cache: tuple[PointCloud2Like, PreparedModel] | None = None
         self._frames: dict[str, str] = {}
         self._guess: InitialGuess | None = None
 
@@ -147,7 +148,7 @@ class RegistrationPipeline:
         ``motion_model`` constant_velocity that result moved on by the last motion."""
         if not self.settings.warm_start:
             return None
-        if self.settings.motion_model == "none":
+        if self.settings.motion_model == MotionModel.NONE:
             return self.previous
         return self._motion.predict(stamp_ns)
 
@@ -181,7 +182,7 @@ class RegistrationPipeline:
             self.reset()
         self.settings = settings
 
-    def process(self, model_msg: Any, data_msg: Any) -> PairOutcome:
+    def process(self, model_msg: PointCloud2Like, data_msg: PointCloud2Like) -> PairOutcome:
         """The outcome of one pair; only a reliable result is kept as the next warm start."""
         header = pair_header(model_msg, data_msg, self.settings.dims)
         guessed = self._guess is not None
@@ -201,7 +202,9 @@ class RegistrationPipeline:
             self._track = None
         return outcome
 
-    def _process(self, header: PairHeader, model_msg: Any, data_msg: Any) -> PairOutcome:
+    def _process(
+        self, header: PairHeader, model_msg: PointCloud2Like, data_msg: PointCloud2Like
+    ) -> PairOutcome:
         settings = self.settings
         frame_problem = self._check_frames(header.model_frame, header.data_frame)
         if frame_problem:
@@ -242,12 +245,12 @@ class RegistrationPipeline:
             timings=timings,
         )
 
-    def _read(self, msg: Any, capped: bool = True) -> CloudPoints:
+    def _read(self, msg: CloudLayoutLike, capped: bool = True) -> CloudPoints:
         settings = self.settings
         cap = settings.max_points if capped else None
         return read_cloud(msg, settings.dims, cap, settings.registration.seed, settings.voxel_size)
 
-    def _model(self, model_msg: Any) -> tuple[PreparedModel, CloudPoints | None]:
+    def _model(self, model_msg: PointCloud2Like) -> tuple[PreparedModel, CloudPoints | None]:
         """The model prepared for registration (frisicp_core.PreparedModel), once per message: in
         latest_model mode the same message serves every scan. Full resolution: ``max_points``
         caps data clouds only; a random cap of a 2,000,000-point map to 10,000 points kept one
@@ -279,7 +282,7 @@ class RegistrationPipeline:
                 return f"frame mismatch: {side} cloud is in '{frame}', expected '{expected}' ({side}_frame)"
             seen = self._frames.get(side)
             if seen is not None and frame != seen:
-                if settings.pairing == "synchronized":
+                if settings.pairing == PairingMode.SYNCHRONIZED:
                     return (
                         f"frame mismatch: {side} cloud is in '{frame}' but this {side} stream was in"
                         f" '{seen}' (synchronized pairing needs fixed frames; call ~/reset to accept)"
@@ -298,7 +301,7 @@ def _timings(model: CloudPoints | None, data: CloudPoints, started: float, start
     )
 
 
-def pair_header(model_msg: Any, data_msg: Any, dims: int) -> PairHeader:
+def pair_header(model_msg: PointCloud2Like, data_msg: PointCloud2Like, dims: int) -> PairHeader:
     stamp = data_msg.header.stamp
     return PairHeader(
         stamp=(int(stamp.sec), int(stamp.nanosec)),

@@ -1,8 +1,8 @@
 """sensor_msgs/PointCloud2 <-> (N, m) float64 points, for rclpy and rosbags messages alike.
 
-Messages are duck-typed: anything with ``height width fields is_bigendian point_step row_step
-data`` (and ``header`` for the caller) works, where ``fields`` items have ``name offset datatype
-count``. rclpy stores ``data`` as ``array.array('B')``, rosbags as a uint8 ``np.ndarray``; both
+Messages are duck-typed (``frisicp_ros.stream.messages``): anything with ``height width fields
+is_bigendian point_step row_step data`` (and ``header`` for the caller) works, where ``fields``
+items have ``name offset datatype count``. rclpy stores ``data`` as ``array.array('B')``, rosbags as a uint8 ``np.ndarray``; both
 expose the buffer protocol, so every field is read through a strided numpy view of the original
 bytes (no copy) and only the selected coordinates are copied, once, into float64.
 
@@ -15,12 +15,12 @@ import itertools
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Literal, Protocol, TypeVar
+from typing import Any, Literal, TypeVar
 
 import numpy as np
 
-from frisicp_core import Similarity, downsample
-from frisicp_core.voxel import voxel_filter
+from frisicp_core import Similarity, downsample, voxel_filter
+from frisicp_ros.stream.messages import CloudLayoutLike, PointCloud2Like, PointFieldLike
 
 # sensor_msgs/PointField datatype constants (identical in rclpy and rosbags).
 INT8, UINT8, INT16, UINT16, INT32, UINT32, FLOAT32, FLOAT64 = range(1, 9)
@@ -39,13 +39,6 @@ COORDINATE_NAMES = ("x", "y", "z")
 
 class CloudError(ValueError):
     """A PointCloud2 that cannot be registered: malformed, empty, or without finite points."""
-
-
-class PointFieldLike(Protocol):
-    name: str
-    offset: int
-    datatype: int
-    count: int
 
 
 @dataclass(frozen=True)
@@ -80,7 +73,7 @@ def check_dims(dims: int) -> None:
         raise ValueError(f"dims must be 2 (x y) or 3 (x y z), got {dims}")
 
 
-def coordinate_views(msg: Any, dims: int = 3) -> list[np.ndarray]:
+def coordinate_views(msg: CloudLayoutLike, dims: int = 3) -> list[np.ndarray]:
     """Zero-copy (height, width) views of the x, y(, z) fields, in the message's byte order.
 
     Raises CloudError for a malformed layout; the views keep ``msg.data`` alive.
@@ -166,7 +159,7 @@ class CloudPoints:
 
 
 def cloud_to_points(
-    msg: Any, dims: int = 3, max_points: int | None = None, seed: int = 0, voxel_size: float = 0.0
+    msg: CloudLayoutLike, dims: int = 3, max_points: int | None = None, seed: int = 0, voxel_size: float = 0.0
 ) -> np.ndarray:
     """The finite points of a PointCloud2 as a C-contiguous (N, dims) float64 array.
 
@@ -180,7 +173,7 @@ def cloud_to_points(
 
 
 def read_cloud(
-    msg: Any, dims: int = 3, max_points: int | None = None, seed: int = 0, voxel_size: float = 0.0
+    msg: CloudLayoutLike, dims: int = 3, max_points: int | None = None, seed: int = 0, voxel_size: float = 0.0
 ) -> CloudPoints:
     """:func:`cloud_to_points` with its counts and timings.
 
@@ -249,7 +242,7 @@ def _gather(columns: Sequence[np.ndarray], index: np.ndarray | None) -> np.ndarr
 
 
 def aligned_cloud(
-    msg: Any, similarity: Similarity, dims: int, make_cloud: Callable[[CloudParts], CloudT]
+    msg: PointCloud2Like, similarity: Similarity, dims: int, make_cloud: Callable[[CloudParts], CloudT]
 ) -> CloudT:
     """``msg`` with x, y(, z) mapped through ``similarity``; every other byte kept.
 
@@ -279,13 +272,13 @@ def aligned_cloud(
 class _CloudOverData:
     """The layout of ``msg`` over another buffer, so coordinate_views can write into a copy."""
 
-    def __init__(self, msg: Any, data: np.ndarray) -> None:
+    def __init__(self, msg: CloudLayoutLike, data: np.ndarray) -> None:
         self.height, self.width, self.fields = msg.height, msg.width, msg.fields
         self.is_bigendian, self.point_step, self.row_step = msg.is_bigendian, msg.point_step, msg.row_step
         self.data = data
 
 
-def layout_of(msg: Any) -> dict[str, Any]:
+def layout_of(msg: PointCloud2Like) -> dict[str, Any]:
     """Every CloudParts field of a PointCloud2 message but ``data``, as plain values."""
     return {
         "height": int(msg.height),
@@ -342,9 +335,3 @@ def points_to_parts(
         data=table.view(np.uint8),
         is_dense=bool(np.isfinite(pts).all()),
     )
-
-
-def stamp_ns(msg: Any) -> int:
-    """The header stamp of a message as integer nanoseconds."""
-    stamp = msg.header.stamp
-    return int(stamp.sec) * 1_000_000_000 + int(stamp.nanosec)

@@ -28,10 +28,9 @@ from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from frisicp_core import RegistrationConfig
-from frisicp_core.kdtree import BACKENDS
-from frisicp_ros.stream.motion import MOTION_MODELS
-from frisicp_ros.stream.pairing import PAIRING_MODES
+from frisicp_core import BACKENDS, RegistrationConfig
+from frisicp_ros.stream.motion import MOTION_MODELS, MotionModel
+from frisicp_ros.stream.pairing import PAIRING_MODES, PairingMode
 
 Value = bool | int | float | str
 
@@ -220,21 +219,30 @@ FRAME_RULE = Rule(
 # and the stream would never reach tracking (~70 ms a scan).
 STREAM_BUDGET_SECONDS = 15.0
 
-MODEL_QOS_CHOICES = ("sensor_data", "reliable", "transient_local")
-DATA_QOS_CHOICES = ("sensor_data", "reliable")
+
+class SubscriptionQos(str, enum.Enum):
+    """The QoS choices of the node's cloud subscriptions (``model_qos``, ``data_qos``)."""
+
+    SENSOR_DATA = "sensor_data"  # best effort, depth 5
+    RELIABLE = "reliable"  # depth 5
+    TRANSIENT_LOCAL = "transient_local"  # reliable, transient local, depth 1: a latched map
+
+
+MODEL_QOS_CHOICES: tuple[str, ...] = tuple(qos.value for qos in SubscriptionQos)
+DATA_QOS_CHOICES: tuple[str, ...] = (SubscriptionQos.SENSOR_DATA.value, SubscriptionQos.RELIABLE.value)
 
 OPTIONS: tuple[Option, ...] = (
     # --- the live node -------------------------------------------------------------------------
     node_option(
         "model_qos",
-        "sensor_data",
+        SubscriptionQos.SENSOR_DATA.value,
         "QoS of the model subscription: sensor_data (best effort, depth 5), reliable (depth 5), or "
         "transient_local (reliable, transient local, depth 1: a latched map)",
         choices=MODEL_QOS_CHOICES,
     ),
     node_option(
         "data_qos",
-        "sensor_data",
+        SubscriptionQos.SENSOR_DATA.value,
         "QoS of the data subscription: sensor_data or reliable (depth 5)",
         choices=DATA_QOS_CHOICES,
     ),
@@ -296,7 +304,7 @@ OPTIONS: tuple[Option, ...] = (
     # --- the stream: node and bag mode ---------------------------------------------------------
     stream_option(
         "pairing",
-        "latest_model",
+        PairingMode.LATEST_MODEL.value,
         "latest_model: each data cloud against the newest model before it (map-to-scan);"
         " synchronized: model and data by header stamp within sync_tolerance (two sensors)",
         choices=PAIRING_MODES,
@@ -306,7 +314,7 @@ OPTIONS: tuple[Option, ...] = (
         0.05,
         "largest header stamp difference (s) of a synchronized pair",
         bounds=(0.0, 10.0),
-        needs=("pairing", "synchronized"),
+        needs=("pairing", PairingMode.SYNCHRONIZED.value),
     ),
     stream_option("dims", 3, "3: register x y z; 2: x y only (planar scans)", bounds=(2, 3)),
     stream_option(
@@ -331,7 +339,7 @@ OPTIONS: tuple[Option, ...] = (
     ),
     stream_option(
         "motion_model",
-        "constant_velocity",
+        MotionModel.CONSTANT_VELOCITY.value,
         "warm start of a moving sensor: constant_velocity (the last result moved on by the sensor's"
         " recent velocity for the stamp gap; needs increasing stamps) or none (the last result)",
         choices=MOTION_MODELS,

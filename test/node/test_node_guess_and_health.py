@@ -24,7 +24,8 @@ from sensor_msgs.msg import PointCloud2  # noqa: E402
 from std_srvs.srv import Trigger  # noqa: E402
 
 from frisicp_core import Similarity  # noqa: E402
-from frisicp_ros.stream.outputs import TF_TYPE, rclpy_message_types  # noqa: E402
+from frisicp_ros.node.message_types import rclpy_message_types  # noqa: E402
+from frisicp_ros.stream.outputs import TF_TYPE  # noqa: E402
 
 pytestmark = pytest.mark.ros
 

@@ -118,11 +118,12 @@ def test_console_script_registers_validates_parameters_and_exits_cleanly_on_sigi
     assert "Traceback" not in stderr, stderr
 
 
-def test_invalid_parameter_file_value_fails_with_a_message(tmp_path):
+@pytest.mark.parametrize("script", ["register_node", "register_lifecycle_node"])
+def test_invalid_parameter_file_value_fails_with_a_message(tmp_path, script):
     bad = tmp_path / "bad.yaml"
     bad.write_text("/**:\n  ros__parameters:\n    overlap: 1.5\n")
     run = subprocess.run(
-        [str(REGISTER_NODE), "--ros-args", "--params-file", str(bad)],
+        [str(installed_script(script)), "--ros-args", "--params-file", str(bad)],
         env=ENV,
         capture_output=True,
         text=True,

@@ -9,10 +9,10 @@ from support.data import axis_rotation
 from frisicp_core import Similarity, bumpy_surface, closed_contour, register
 from frisicp_core.points import rms_radius
 from frisicp_core.sampling import needs_spatial_order, spatial_order
+from frisicp_ros.node.message_types import rclpy_message_types
 from frisicp_ros.stream.outputs import (
     OUTPUT_TOPICS,
     build_outputs,
-    rclpy_message_types,
     rosbags_message_types,
 )
 from frisicp_ros.stream.pairing import Pairer

@@ -7,7 +7,9 @@ import pytest
 from support.data import axis_rotation
 
 from frisicp_core import Similarity, downsample
-from frisicp_ros.stream.outputs import MessageTypes, rclpy_message_types, rosbags_message_types
+from frisicp_ros.node.message_types import rclpy_message_types
+from frisicp_ros.stream.messages import HeaderLike, PointCloud2Like, PointFieldLike, TimeLike
+from frisicp_ros.stream.outputs import MessageTypes, rosbags_message_types
 from frisicp_ros.stream.pointcloud2 import (
     DATATYPES,
     FLOAT32,
@@ -42,6 +44,32 @@ def make(types: MessageTypes, parts: CloudParts, frame: str = "lidar", **overrid
 def grid_points(n: int = 40) -> np.ndarray:
     rng = np.random.default_rng(1)
     return np.round(rng.uniform(-50, 50, size=(n, 3)))  # integers: exact in every datatype
+
+
+def members(protocol: type) -> set[str]:
+    """The attributes a message protocol of frisicp_ros.stream.messages names (its own and inherited)."""
+    return {
+        name
+        for cls in protocol.__mro__
+        if cls.__module__ == "frisicp_ros.stream.messages"
+        for name, member in vars(cls).items()
+        if isinstance(member, property)
+    }
+
+
+def test_real_messages_have_every_attribute_the_stream_protocols_name(types):
+    """mypy checks the stream against the protocols; this checks the protocols against rclpy and rosbags."""
+    cloud = make(types, points_to_parts(grid_points()))
+    assert members(PointCloud2Like) == {
+        *("header", "height", "width", "fields", "is_bigendian", "point_step", "row_step", "data", "is_dense")
+    }
+    for protocol, message in (
+        (PointCloud2Like, cloud),
+        (HeaderLike, cloud.header),
+        (TimeLike, cloud.header.stamp),
+        (PointFieldLike, cloud.fields[0]),
+    ):
+        assert {name for name in members(protocol) if not hasattr(message, name)} == set(), protocol.__name__
 
 
 @pytest.mark.parametrize("datatype", sorted(DATATYPES))

@@ -8,7 +8,8 @@ import math
 import numpy as np
 
 from frisicp_core import Similarity, axis_angle_rotation
-from frisicp_ros.stream.outputs import MessageTypes, rclpy_message_types
+from frisicp_ros.node.message_types import rclpy_message_types
+from frisicp_ros.stream.outputs import MessageTypes
 from frisicp_ros.stream.pointcloud2 import points_to_parts
 
 GUESS_SIGMAS = (5.0, 0.1)  # degrees, model units

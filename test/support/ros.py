@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface
-from frisicp_ros.stream.outputs import rclpy_message_types
+from frisicp_ros.node.message_types import rclpy_message_types
 from frisicp_ros.stream.pointcloud2 import points_to_parts
 
 # Rotation by 20 degrees about a tilted axis; each node test checks the node recovers this.
