@@ -108,6 +108,32 @@ def test_pipeline_recovers_the_similarity_and_reports_timings():
     assert pipeline.previous is None
 
 
+def test_a_jump_in_a_tracked_stream_is_retried_cold_and_never_published_wrong():
+    """Issue 14: the node, replay and frisicp bag share this pipeline. After a jump of 120 deg
+    (relocalisation, a swapped sensor) the warm start from the track falls into a wrong minimum;
+    the pipeline hands the core its track, the core retries cold, and the pair comes out right
+    and reliable, the track following the new pose."""
+    model_points = bumpy_surface(12000, seed=1)
+    whole = bumpy_surface(6000, seed=5)
+    first = Similarity(1.7, axis_rotation(3, 17.0), np.array([0.2, -0.1, 0.4]))
+    turn = Similarity.about(model_points.mean(axis=0), 1.0, axis_rotation(3, 120.0, (1.0, 0.4, -0.3)))
+    model_msg = cloud(model_points, "map", 1_000_000_000)
+    pipeline = RegistrationPipeline(PipelineSettings.create(max_points=3000))
+    stamp = 2_000_000_000
+    outcomes = []
+    for truth in (first, first, turn @ first, turn @ first):
+        outcome = pipeline.process(model_msg, cloud(truth.inverse().apply(whole), "lidar", stamp))
+        stamp += 100_000_000
+        assert isinstance(outcome, Registered) and outcome.reliable, outcome
+        error = outcome.result.similarity @ truth.inverse()
+        assert np.degrees(error.rotation_angle()) < 1.0 and abs(error.scale - 1.0) < 0.01
+        outcomes.append(outcome)
+    tracked, jumped, after = outcomes[1:]
+    assert tracked.warm_started and not tracked.result.retried
+    assert jumped.result.retried.startswith("warm start retried cold") and not jumped.warm_started
+    assert after.warm_started and not after.result.retried  # the track follows the new pose
+
+
 def test_model_is_prepared_once_per_message_at_full_resolution():
     """max_points caps data clouds only: the model is the core's PreparedModel of all its points,
     made for the first pair and reused by the next (its tree too)."""
