@@ -105,7 +105,11 @@ def stream_picture(records: Sequence[Mapping[str, Any]], path: str | Path, title
     axes[0].plot(t, scale, ".-", color="#1f77b4", markersize=3, linewidth=0.8)
     sigma = np.array([(r.get("uncertainty") or {}).get("scale") or np.nan for r in usable], dtype=np.float64)
     if np.any(np.isfinite(sigma)):
-        axes[0].fill_between(t, scale * (1 - sigma), scale * (1 + sigma), alpha=0.3, label="1 sigma")
+        # An explicit mask: matplotlib 3.6 (setup.py's floor) fails on unmasked arrays without
+        # one (a 0-d `where`), and the band should skip results without a sigma anyway.
+        known = np.isfinite(sigma)
+        band = (scale * (1 - sigma), scale * (1 + sigma))
+        axes[0].fill_between(t, *band, where=known, alpha=0.3, label="1 sigma")
         axes[0].legend(loc="best", fontsize=8)
     axes[0].set_ylabel("scale s")
     axes[1].plot(t, [_rotation_deg(r) for r in usable], ".-", color="#2ca02c", markersize=3, linewidth=0.8)
