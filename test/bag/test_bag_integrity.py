@@ -20,6 +20,7 @@ from support.bags import (
     write_ros1_bag,
     write_rosbag2,
 )
+from support.scripts import installed_script
 
 from frisicp_ros.cli import main as cli
 
@@ -131,7 +132,7 @@ def test_a_fifo_is_refused_instead_of_waited_on(tmp_path):
     """Opening a FIFO waits for a writer: `frisicp bag-info a.mcap` on one never returned."""
     fifo = tmp_path / "recording.mcap"
     os.mkfifo(fifo)
-    frisicp = os.path.join(os.path.dirname(sys.executable), "frisicp")
+    frisicp = installed_script("frisicp")  # beside the interpreter, or where colcon installs it
     for command in (bag_command(fifo), ["bag-info", fifo]):
         done = subprocess.run([frisicp, *map(str, command)], capture_output=True, text=True, timeout=60)
         assert done.returncode == 2 and "not a regular file (a FIFO, socket or device)" in done.stderr
