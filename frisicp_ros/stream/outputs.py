@@ -287,6 +287,7 @@ def result_summary(result: RegistrationResult) -> dict[str, object]:
         "overlap_forward": result.overlap_forward,
         "overlap_backward": result.overlap_backward,
         "warm_started": result.warm_started,
+        "retried": result.retried,  # why a warm start was retried cold ('' when it was not)
         "seconds": result.seconds,
         "uncertainty": uncertainty_summary(result),
     }

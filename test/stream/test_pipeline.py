@@ -13,6 +13,7 @@ from frisicp_ros.node.message_types import rclpy_message_types
 from frisicp_ros.stream.outputs import (
     OUTPUT_TOPICS,
     build_outputs,
+    result_summary,
     rosbags_message_types,
 )
 from frisicp_ros.stream.pairing import Pairer
@@ -132,6 +133,7 @@ def test_a_jump_in_a_tracked_stream_is_retried_cold_and_never_published_wrong():
     assert tracked.warm_started and not tracked.result.retried
     assert jumped.result.retried.startswith("warm start retried cold") and not jumped.warm_started
     assert after.warm_started and not after.result.retried  # the track follows the new pose
+    assert result_summary(jumped.result)["retried"] == jumped.result.retried  # in every JSON line
 
 
 def test_model_is_prepared_once_per_message_at_full_resolution():
