@@ -409,6 +409,11 @@ def _register(
         model_diagonal=model.diagonal,
     )
     reliable, reason = verdict.reliable, verdict.reason
+    if competitor is not None and uncertainty is not None:
+        # Judged on the local uncertainty (the ambiguity is a reason of its own); reported with
+        # the competitor's offset in it, so that an ambiguous answer's sigmas say how far off it
+        # may be (frisicp_core.uncertainty.Uncertainty.with_alternative).
+        uncertainty = uncertainty.with_alternative(competitor.similarity, sim)
     budget = solver.deadline.reason
     if budget:
         reliable, reason = False, "; ".join(filter(None, (budget, reason)))

@@ -44,7 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .kdtree import NearestNeighbors
-from .rotations import generators, vector_size
+from .rotations import generators, log_rotation, vector_size
 from .similarity import FloatArray, Similarity
 
 # Neighbours whose covariance gives a point's surface normal. Fewer leave the normals of a noisy
@@ -109,6 +109,27 @@ class Uncertainty:
         carry[-m:, 1 : 1 + r] = np.einsum("kij,j->ik", generators(m), offset)
         covariance: FloatArray = carry @ self.covariance @ carry.T
         return Uncertainty(covariance, q, self.widening)
+
+    def with_alternative(self, alternative: Similarity, answer: Similarity) -> Uncertainty:
+        """This uncertainty of ``answer``, widened by a distinct pose that fits about as well
+        (an ambiguity, :mod:`frisicp_core.ambiguity`): the covariance plus delta delta^T, delta
+        the alternative's offset from the answer in the parameters of the module doc
+        (log(s'/s), the rotation vector of R' R^T, where the centre lands). The data do not
+        decide between the two, so the answer's error may be as large as that offset; the
+        local covariance alone would claim a certainty the clouds do not give."""
+        m = self.dim
+        data_centroid = answer.inverse().apply(self.centre[None])[0]
+        delta = np.concatenate(
+            [
+                [np.log(alternative.scale / answer.scale)],
+                log_rotation(alternative.rotation @ answer.rotation.T),
+                alternative.apply(data_centroid[None])[0] - self.centre,
+            ]
+        )
+        if delta.shape[0] != 1 + vector_size(m) + m or not np.all(np.isfinite(delta)):
+            return self
+        covariance: FloatArray = self.covariance + np.outer(delta, delta)
+        return Uncertainty(covariance, self.centre, self.widening)
 
     def pose_covariance(self, similarity: Similarity) -> FloatArray:
         """The 6 x 6 covariance of the pose (R, t) in ROS's order (x, y, z, roll, pitch, yaw).

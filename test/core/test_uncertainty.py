@@ -80,3 +80,18 @@ def test_a_plane_leaves_its_sliding_directions_undetermined() -> None:
     assert result.uncertainty is not None
     surface = registered_with_noise(0.002, 100)
     assert result.uncertainty.translation > 30 * surface.translation
+
+
+def test_an_alternative_that_fits_as_well_widens_the_sigmas_to_reach_it() -> None:
+    """An ambiguous answer reports sigmas that cover the competing pose: its offset, in the
+    covariance's own parameters (a perturbation about the centre), lies within 1 sigma."""
+    centre = TRUTH.apply(np.array([0.3, -0.2, 0.1]))
+    local = Uncertainty(np.diag([1e-6] * 7), centre)
+    xi = np.array([0.02, 0.0, 0.05, -0.03, 0.01, -0.02, 0.03])  # 2 % in scale, ~3.4 deg, a shift
+    alternative = perturbed(TRUTH, xi, centre)
+    widened = local.with_alternative(alternative, TRUTH)
+    np.testing.assert_allclose(widened.covariance - local.covariance, np.outer(xi, xi), atol=1e-12)
+    assert widened.scale == pytest.approx(0.02, rel=0.01)
+    assert widened.rotation_deg == pytest.approx(np.degrees(np.linalg.norm(xi[1:4])), rel=0.01)
+    assert widened.translation == pytest.approx(np.linalg.norm(xi[4:]), rel=0.01)
+    assert local.with_alternative(TRUTH, TRUTH).covariance == pytest.approx(local.covariance)
