@@ -43,7 +43,15 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from node_latency import PROFILE_VARIABLES, cpu_seconds, diag_value, percentiles, rss_kib, trend_mib_per_min
+from node_latency import (
+    PROFILE_VARIABLES,
+    NodeOutputs,
+    cpu_seconds,
+    diag_value,
+    percentiles,
+    rss_kib,
+    trend_mib_per_min,
+)
 
 from frisicp_bench import script
 from frisicp_bench.terrain import Terrain, scan_errors
@@ -137,17 +145,14 @@ def indexing_seconds(points: np.ndarray) -> dict[str, float]:
 
 def run(args: argparse.Namespace, profile: Path) -> dict[str, Any]:
     import rclpy
-    from diagnostic_msgs.msg import DiagnosticArray
-    from geometry_msgs.msg import PoseWithCovarianceStamped, TransformStamped
-    from rclpy.executors import SingleThreadedExecutor
+    from geometry_msgs.msg import PoseWithCovarianceStamped
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import PointCloud2
-    from std_msgs.msg import Float64MultiArray
 
     from frisicp_ros.node.demo import stop_node
     from frisicp_ros.node.message_types import rclpy_message_types
     from frisicp_ros.stream.pointcloud2 import points_to_parts
-    from frisicp_ros.stream.stamps import stamp_ns, time_ns
+    from frisicp_ros.stream.stamps import time_ns
 
     terrain = Terrain(0)
     map_points = terrain.map_points(args.map_points)
@@ -190,35 +195,7 @@ def run(args: argparse.Namespace, profile: Path) -> dict[str, Any]:
         QoSProfile(depth=1, reliability=ReliabilityPolicy.RELIABLE),
     )
     sent: dict[int, tuple[float, Similarity, np.ndarray]] = {}  # stamp -> (send time, truth, scan)
-    answered: dict[int, float] = {}
-    stamp_of: dict[tuple[float, float, float], int] = {}
-    similarities: list[np.ndarray] = []
-    diagnostics: list[dict[str, str]] = []
-    lock = threading.Lock()
-
-    def on_transform(msg: TransformStamped) -> None:
-        stamp = stamp_ns(msg)
-        t = msg.transform.translation
-        with lock:
-            answered[stamp] = time.monotonic()
-            stamp_of[(t.x, t.y, t.z)] = stamp
-
-    def on_similarity(msg: Float64MultiArray) -> None:
-        with lock:
-            similarities.append(np.array(msg.data, dtype=np.float64).reshape(4, 4))
-
-    def on_diagnostics(msg: DiagnosticArray) -> None:
-        for status in msg.status:
-            if status.name.startswith("frisicp"):
-                diagnostics.append({kv.key: kv.value for kv in status.values})
-
-    bench.create_subscription(TransformStamped, "/frisicp/transform", on_transform, 50)
-    bench.create_subscription(Float64MultiArray, "/frisicp/similarity", on_similarity, 50)
-    bench.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(bench)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
+    outputs = NodeOutputs(bench, context)
     model_pub.publish(model)
     del model
 
@@ -226,7 +203,7 @@ def run(args: argparse.Namespace, profile: Path) -> dict[str, Any]:
         truth = truth_at(seconds)
         stamp = bench.get_clock().now().to_msg()
         msg, scan = maker.cloud(truth, stamp)
-        with lock:
+        with outputs.lock:
             sent[time_ns(stamp.sec, stamp.nanosec)] = (time.monotonic(), truth, scan[::10].copy())
         data_pub.publish(msg)
 
@@ -235,22 +212,20 @@ def run(args: argparse.Namespace, profile: Path) -> dict[str, Any]:
     started = time.monotonic()
     deadline = started + 180
     first_answer = None
-    while not answered and time.monotonic() < deadline and node.poll() is None:
+    while not outputs.answered and time.monotonic() < deadline and node.poll() is None:
         guess_pub.publish(guess_message(types, truth_at(0.0), bench.get_clock().now().to_msg()))
         time.sleep(0.5)
         publish(0.0)
         waited = time.monotonic()
-        while not answered and time.monotonic() - waited < 10.0:
+        while not outputs.answered and time.monotonic() - waited < 10.0:
             time.sleep(0.05)
-    if answered:
+    if outputs.answered:
         first_answer = round(time.monotonic() - started, 2)
     else:
         node.kill()
         return {"node_answered": False, "log": "".join(node_log)[-2000:]}
     time.sleep(2.0)
-    with lock:
-        for collected in (sent, answered, stamp_of, similarities, diagnostics):
-            collected.clear()
+    outputs.clear(sent)
 
     load_before = os.getloadavg()
     memory: list[tuple[float, int]] = []
@@ -271,24 +246,22 @@ def run(args: argparse.Namespace, profile: Path) -> dict[str, Any]:
     load_after = os.getloadavg()
     stop_node(node, timeout=30)
     drain.join(timeout=5)
-    executor.shutdown(timeout_sec=5)
-    spinner.join(timeout=5)
+    outputs.stop()
     bench.destroy_node()
     rclpy.shutdown(context=context)
 
-    with lock:
+    with outputs.lock:
+        answered = outputs.answered
         end_to_end = [answered[s] - sent[s][0] for s in sent if s in answered]
-        errors, unmatched = [], 0
-        for matrix in similarities:
-            stamp = stamp_of.get(tuple(matrix[:3, 3]))  # type: ignore[arg-type]
-            if stamp not in sent:
-                unmatched += 1
-                continue
+        errors = []
+        matched, unmatched = outputs.estimates(sent)
+        for stamp, matrix in matched:
             _, truth, scan = sent[stamp]
             errors.append(scan_errors(Similarity.from_matrix(matrix), truth, scan))
         n_sent = len(sent)
     errors_array = np.array(errors).reshape(-1, 3)
     failures = int(np.sum(np.any(errors_array >= np.array(ACCURACY), axis=1)))
+    diagnostics = outputs.diagnostics
     last = diagnostics[-1] if diagnostics else {}
     e2e_p50, e2e_p95, e2e_max = percentiles(end_to_end)
     quarter = max(len(memory) // 4, 1)

@@ -230,20 +230,84 @@ def diag_value(report: dict[str, str], key: str) -> float:
         return float("nan")
 
 
+class NodeOutputs:
+    """What register_node publishes, collected by the bench's own node on a spinning executor:
+    when each ``~/transform`` arrived (by its data stamp), the stamp of each transform's
+    translation (``~/similarity`` has no header: its translation column finds its stamp), the
+    ``~/similarity`` matrices and the frisicp statuses of /diagnostics. ``lock`` guards them, and
+    whatever the caller records beside them (the clouds it sent)."""
+
+    def __init__(self, bench: Any, context: Any) -> None:
+        from diagnostic_msgs.msg import DiagnosticArray
+        from geometry_msgs.msg import TransformStamped
+        from rclpy.executors import SingleThreadedExecutor
+        from std_msgs.msg import Float64MultiArray
+
+        from frisicp_ros.stream.stamps import stamp_ns
+
+        self.lock = threading.Lock()
+        self.answered: dict[int, float] = {}  # stamp ns -> monotonic receipt of ~/transform
+        self.stamp_of: dict[tuple[float, float, float], int] = {}  # transform translation -> stamp
+        self.similarities: list[np.ndarray] = []
+        self.diagnostics: list[dict[str, str]] = []
+
+        def on_transform(msg: Any) -> None:
+            stamp = stamp_ns(msg)
+            translation = msg.transform.translation
+            with self.lock:
+                self.answered[stamp] = time.monotonic()
+                self.stamp_of[(translation.x, translation.y, translation.z)] = stamp
+
+        def on_similarity(msg: Any) -> None:
+            with self.lock:
+                self.similarities.append(np.array(msg.data, dtype=np.float64).reshape(4, 4))
+
+        def on_diagnostics(msg: Any) -> None:
+            for status in msg.status:
+                if status.name.startswith("frisicp"):
+                    self.diagnostics.append({kv.key: kv.value for kv in status.values})
+
+        bench.create_subscription(TransformStamped, "/frisicp/transform", on_transform, 50)
+        bench.create_subscription(Float64MultiArray, "/frisicp/similarity", on_similarity, 50)
+        bench.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
+        self._executor = SingleThreadedExecutor(context=context)
+        self._executor.add_node(bench)
+        self._spinner = threading.Thread(target=self._executor.spin, daemon=True)
+        self._spinner.start()
+
+    def clear(self, sent: dict[int, Any]) -> None:
+        """Forget everything collected so far, and the caller's ``sent`` with it (after warm-up)."""
+        with self.lock:
+            for collected in (sent, self.answered, self.stamp_of, self.similarities, self.diagnostics):
+                collected.clear()
+
+    def estimates(self, sent: dict[int, Any]) -> tuple[list[tuple[int, np.ndarray]], int]:
+        """Each ``~/similarity`` matched to the stamp of a cloud in ``sent``, and how many matched
+        none. Call with ``lock`` held."""
+        matched, unmatched = [], 0
+        for matrix in self.similarities:
+            stamp = self.stamp_of.get(tuple(matrix[:3, 3]))  # type: ignore[arg-type]
+            if stamp in sent:
+                matched.append((stamp, matrix))
+            else:
+                unmatched += 1
+        return matched, unmatched
+
+    def stop(self) -> None:
+        self._executor.shutdown(timeout_sec=5)
+        self._spinner.join(timeout=5)  # a spin still inside rcl at interpreter exit aborts the process
+
+
 def run(args: argparse.Namespace, truth_name: str) -> dict[str, Any]:
     import rclpy
-    from diagnostic_msgs.msg import DiagnosticArray
-    from geometry_msgs.msg import TransformStamped
-    from rclpy.executors import SingleThreadedExecutor
     from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy, qos_profile_sensor_data
     from sensor_msgs.msg import PointCloud2
-    from std_msgs.msg import Float64MultiArray
 
     from frisicp_core import Similarity, bumpy_surface
     from frisicp_ros.node.demo import stop_node
     from frisicp_ros.node.message_types import rclpy_message_types
     from frisicp_ros.stream.pointcloud2 import points_to_parts
-    from frisicp_ros.stream.stamps import stamp_ns, time_ns
+    from frisicp_ros.stream.stamps import time_ns
 
     command = [
         str(Path(sys.executable).parent / "register_node"),
@@ -282,59 +346,29 @@ def run(args: argparse.Namespace, truth_name: str) -> dict[str, Any]:
     )
     data_pub = bench.create_publisher(PointCloud2, "/bench/data", data_qos)
     sent: dict[int, tuple[float, Any]] = {}  # stamp ns -> (monotonic send time, truth)
-    answered: dict[int, float] = {}  # stamp ns -> monotonic receipt of ~/transform
-    stamp_of: dict[tuple[float, float, float], int] = {}  # transform translation -> stamp
-    similarities: list[np.ndarray] = []
-    diagnostics: list[dict[str, str]] = []
-    lock = threading.Lock()
-
-    def on_transform(msg: TransformStamped) -> None:
-        stamp = stamp_ns(msg)
-        translation = msg.transform.translation
-        with lock:
-            answered[stamp] = time.monotonic()
-            stamp_of[(translation.x, translation.y, translation.z)] = stamp
-
-    def on_similarity(msg: Float64MultiArray) -> None:
-        with lock:
-            similarities.append(np.array(msg.data, dtype=np.float64).reshape(4, 4))
-
-    def on_diagnostics(msg: DiagnosticArray) -> None:
-        for status in msg.status:
-            if status.name.startswith("frisicp"):
-                diagnostics.append({kv.key: kv.value for kv in status.values})
-
-    bench.create_subscription(TransformStamped, "/frisicp/transform", on_transform, 50)
-    bench.create_subscription(Float64MultiArray, "/frisicp/similarity", on_similarity, 50)
-    bench.create_subscription(DiagnosticArray, "/diagnostics", on_diagnostics, 10)
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(bench)
-    spinner = threading.Thread(target=executor.spin, daemon=True)
-    spinner.start()
+    outputs = NodeOutputs(bench, context)
     model_pub.publish(model)
 
     def publish(seconds: float) -> None:
         truth = truth_at(seconds)
         stamp = bench.get_clock().now().to_msg()
         msg = maker.cloud(truth, stamp)
-        with lock:
+        with outputs.lock:
             sent[time_ns(stamp.sec, stamp.nanosec)] = (time.monotonic(), truth)
         data_pub.publish(msg)
 
     # Warm-up: node start, discovery, the first (cold) registration; the truth stays at t = 0.
     deadline = time.monotonic() + 60
-    while not answered and time.monotonic() < deadline and node.poll() is None:
+    while not outputs.answered and time.monotonic() < deadline and node.poll() is None:
         publish(0.0)
         time.sleep(1.0)
-    if not answered:
+    if not outputs.answered:
         node_log_text = "".join(node_log) if node.poll() is not None else ""
         print("register_node never answered:", node_log_text)
         node.kill()
         return {"truth": truth_name, "node_answered": False}
     time.sleep(3.0)
-    with lock:
-        for collected in (sent, answered, stamp_of, similarities, diagnostics):
-            collected.clear()
+    outputs.clear(sent)
 
     load_before = os.getloadavg()
     memory: list[tuple[float, int]] = []
@@ -358,20 +392,16 @@ def run(args: argparse.Namespace, truth_name: str) -> dict[str, Any]:
 
     stop_node(node, timeout=30)
     drain.join(timeout=5)
-    executor.shutdown(timeout_sec=5)
-    spinner.join(timeout=5)  # a spin still inside rcl at interpreter exit aborts the process
+    outputs.stop()
     bench.destroy_node()
     rclpy.shutdown(context=context)
 
-    with lock:
+    with outputs.lock:
+        answered = outputs.answered
         end_to_end = [answered[stamp] - sent[stamp][0] for stamp in sent if stamp in answered]
         errors = []
-        unmatched = 0
-        for matrix in similarities:
-            stamp = stamp_of.get(tuple(matrix[:3, 3]))  # type: ignore[arg-type]
-            if stamp not in sent:
-                unmatched += 1
-                continue
+        matched, unmatched = outputs.estimates(sent)
+        for stamp, matrix in matched:
             estimate = Similarity.from_matrix(matrix)
             truth = sent[stamp][1]
             rotation = Similarity(1.0, estimate.rotation @ truth.rotation.T, np.zeros(3)).rotation_angle()
@@ -381,6 +411,7 @@ def run(args: argparse.Namespace, truth_name: str) -> dict[str, Any]:
     failures = int(
         np.sum((errors_array[:, 0] >= TARGETS["rotation_deg"]) | (errors_array[:, 1] >= TARGETS["scale_rel"]))
     )
+    diagnostics = outputs.diagnostics
     last = diagnostics[-1] if diagnostics else {}
     first_dropped = int(diagnostics[0].get("dropped pairs", 0)) if diagnostics else 0
     e2e_p50, e2e_p95, e2e_max = percentiles(end_to_end)
