@@ -46,10 +46,9 @@ import numpy as np
 from node_latency import (
     PROFILE_VARIABLES,
     NodeOutputs,
-    cpu_seconds,
     diag_value,
     percentiles,
-    rss_kib,
+    stream,
     trend_mib_per_min,
 )
 
@@ -227,23 +226,9 @@ def run(args: argparse.Namespace, profile: Path) -> dict[str, Any]:
     time.sleep(2.0)
     outputs.clear(sent)
 
-    load_before = os.getloadavg()
-    memory: list[tuple[float, int]] = []
-    start = time.monotonic()
-    node_cpu_start = cpu_seconds(node.pid)
-    count, next_sample = 0, start
-    while (now := time.monotonic()) - start < args.duration:
-        publish(now - start)
-        count += 1
-        if now >= next_sample:
-            memory.append((now - start, rss_kib(node.pid)))
-            next_sample += max(args.duration / 30, 1.0)
-        time.sleep(max(0.0, start + count / args.rate - time.monotonic()))
-    elapsed = time.monotonic() - start
-    time.sleep(3.0)
-    node_cpu = cpu_seconds(node.pid) - node_cpu_start
-    memory.append((time.monotonic() - start, rss_kib(node.pid)))
-    load_after = os.getloadavg()
+    measured = stream(publish, node.pid, args.duration, args.rate)
+    elapsed, memory, node_cpu = measured.elapsed, measured.memory, measured.node_cpu
+    load_before, load_after = measured.load_before, measured.load_after
     stop_node(node, timeout=30)
     drain.join(timeout=5)
     outputs.stop()

@@ -45,6 +45,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -230,6 +231,44 @@ def diag_value(report: dict[str, str], key: str) -> float:
         return float("nan")
 
 
+def stream(publish: Callable[[float], None], pid: int, duration: float, rate: float) -> StreamRun:
+    """Call ``publish(seconds since start)`` ``rate`` times a second for ``duration`` seconds,
+    sampling the node's resident memory about 30 times; then wait 3 s for the last answers and
+    one more diagnostics message."""
+    load_before = os.getloadavg()
+    memory: list[tuple[float, int]] = []
+    start = time.monotonic()
+    node_cpu_start, bench_cpu_start = cpu_seconds(pid), time.process_time()
+    count = 0
+    next_sample = start
+    while (now := time.monotonic()) - start < duration:
+        publish(now - start)
+        count += 1
+        if now >= next_sample:
+            memory.append((now - start, rss_kib(pid)))
+            next_sample += max(duration / 30, 1.0)
+        time.sleep(max(0.0, start + count / rate - time.monotonic()))
+    elapsed = time.monotonic() - start
+    time.sleep(3.0)  # the last answers and one more diagnostics message
+    node_cpu = cpu_seconds(pid) - node_cpu_start
+    bench_cpu = time.process_time() - bench_cpu_start
+    memory.append((time.monotonic() - start, rss_kib(pid)))
+    return StreamRun(elapsed, memory, node_cpu, bench_cpu, load_before, os.getloadavg())
+
+
+@dataclass(frozen=True)
+class StreamRun:
+    """What :func:`stream` measured: seconds streamed, (seconds, RSS KiB) samples of the node,
+    the node's and this process's CPU seconds, the load averages before and after."""
+
+    elapsed: float
+    memory: list[tuple[float, int]]
+    node_cpu: float
+    bench_cpu: float
+    load_before: tuple[float, float, float]
+    load_after: tuple[float, float, float]
+
+
 class NodeOutputs:
     """What register_node publishes, collected by the bench's own node on a spinning executor:
     when each ``~/transform`` arrived (by its data stamp), the stamp of each transform's
@@ -370,25 +409,14 @@ def run(args: argparse.Namespace, truth_name: str) -> dict[str, Any]:
     time.sleep(3.0)
     outputs.clear(sent)
 
-    load_before = os.getloadavg()
-    memory: list[tuple[float, int]] = []
-    start = time.monotonic()
-    node_cpu_start, bench_cpu_start = cpu_seconds(node.pid), time.process_time()
-    count = 0
-    next_sample = start
-    while (now := time.monotonic()) - start < args.duration:
-        publish(now - start)
-        count += 1
-        if now >= next_sample:
-            memory.append((now - start, rss_kib(node.pid)))
-            next_sample += max(args.duration / 30, 1.0)
-        time.sleep(max(0.0, start + count / args.rate - time.monotonic()))
-    elapsed = time.monotonic() - start
-    time.sleep(3.0)  # the last answers and one more diagnostics message
-    node_cpu = cpu_seconds(node.pid) - node_cpu_start
-    bench_cpu = time.process_time() - bench_cpu_start
-    memory.append((time.monotonic() - start, rss_kib(node.pid)))
-    load_after = os.getloadavg()
+    measured = stream(publish, node.pid, args.duration, args.rate)
+    elapsed, memory, node_cpu, bench_cpu = (
+        measured.elapsed,
+        measured.memory,
+        measured.node_cpu,
+        measured.bench_cpu,
+    )
+    load_before, load_after = measured.load_before, measured.load_after
 
     stop_node(node, timeout=30)
     drain.join(timeout=5)
