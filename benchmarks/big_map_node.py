@@ -34,10 +34,8 @@ import argparse
 import array
 import importlib.util
 import os
-import subprocess
 import sys
 import tempfile
-import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -48,6 +46,7 @@ from node_latency import (
     NodeOutputs,
     diag_value,
     percentiles,
+    start_node,
     stream,
     trend_mib_per_min,
 )
@@ -157,22 +156,14 @@ def run(args: argparse.Namespace, profile: Path) -> dict[str, Any]:
     map_points = terrain.map_points(args.map_points)
     indexing = indexing_seconds(map_points)
     truth_at = terrain.pose
-    command = [
-        str(Path(sys.executable).parent / "register_node"),
-        "--ros-args",
-        *("-r", "model:=/bench/model", "-r", "data:=/bench/data"),
-        *("-p", "model_qos:=transient_local", "-p", "data_qos:=reliable"),
-        *("-p", f"initial_scale:={truth_at(0.0).scale * 1.005}"),
-    ]
-    for param in args.param:
-        command += ["-p", param]
-    node = subprocess.Popen(
-        command, env=dict(os.environ), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+    node, node_log, drain = start_node(
+        [
+            "model_qos:=transient_local",
+            "data_qos:=reliable",
+            f"initial_scale:={truth_at(0.0).scale * 1.005}",
+            *args.param,
+        ]
     )
-    node_log: list[str] = []
-    assert node.stderr is not None
-    drain = threading.Thread(target=lambda: node_log.extend(node.stderr or []), daemon=True)
-    drain.start()
 
     types = rclpy_message_types()
     model = types.point_cloud(points_to_parts(map_points), types.header(0, "map"))

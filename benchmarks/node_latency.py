@@ -231,6 +231,27 @@ def diag_value(report: dict[str, str], key: str) -> float:
         return float("nan")
 
 
+def start_node(parameters: list[str]) -> tuple[subprocess.Popen[str], list[str], threading.Thread]:
+    """register_node (its console script beside this interpreter) on the bench's topics with
+    ``parameters`` ("name:=value"), its stderr drained into the returned log by the returned
+    thread: an undrained pipe would block the node once 64 KiB of log accumulate."""
+    command = [
+        str(Path(sys.executable).parent / "register_node"),
+        "--ros-args",
+        *("-r", "model:=/bench/model", "-r", "data:=/bench/data"),
+    ]
+    for parameter in parameters:
+        command += ["-p", parameter]
+    node = subprocess.Popen(
+        command, env=dict(os.environ), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+    )
+    node_log: list[str] = []
+    assert node.stderr is not None
+    drain = threading.Thread(target=lambda: node_log.extend(node.stderr or []), daemon=True)
+    drain.start()
+    return node, node_log, drain
+
+
 def stream(publish: Callable[[float], None], pid: int, duration: float, rate: float) -> StreamRun:
     """Call ``publish(seconds since start)`` ``rate`` times a second for ``duration`` seconds,
     sampling the node's resident memory about 30 times; then wait 3 s for the last answers and
@@ -348,21 +369,9 @@ def run(args: argparse.Namespace, truth_name: str) -> dict[str, Any]:
     from frisicp_ros.stream.pointcloud2 import points_to_parts
     from frisicp_ros.stream.stamps import time_ns
 
-    command = [
-        str(Path(sys.executable).parent / "register_node"),
-        "--ros-args",
-        *("-r", "model:=/bench/model", "-r", "data:=/bench/data"),
-        *("-p", "model_qos:=transient_local", "-p", f"data_qos:={args.data_qos}"),
-    ]
-    for param in args.param:
-        command += ["-p", param]
-    node = subprocess.Popen(
-        command, env=dict(os.environ), stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True
+    node, node_log, drain = start_node(
+        ["model_qos:=transient_local", f"data_qos:={args.data_qos}", *args.param]
     )
-    node_log: list[str] = []
-    assert node.stderr is not None
-    drain = threading.Thread(target=lambda: node_log.extend(node.stderr or []), daemon=True)
-    drain.start()  # an undrained pipe would block the node once 64 KiB of log accumulate
 
     types = rclpy_message_types()
     truth_at = static_truth() if truth_name == "static" else moving_truth()
