@@ -119,6 +119,11 @@ class PreparedModel:
         return self._cache.value(("diagonal",), lambda: _diagonal(self.points))
 
     @property
+    def bounds(self) -> tuple[FloatArray, FloatArray]:
+        """The bounding box's low and high corners."""
+        return self._cache.value(("bounds",), lambda: _bounds(self.points))
+
+    @property
     def spread(self) -> float:
         """:func:`frisicp_core.points.spread` of the points (the verdict's one-scene check)."""
         return self._cache.value(("spread",), lambda: spread(self.points))
@@ -154,7 +159,7 @@ class PreparedModel:
         vectorised pass, cheaper than building the grid index for a model used once, as one
         ``register`` call with an array uses it); later ones use the grid index
         (:class:`frisicp_core.grid_index.GridIndex`, built then). The rows do not depend on which."""
-        bounds = self._cache.value(("bounds",), lambda: _bounds(self.points))
+        bounds = self.bounds
         if np.all(low <= bounds[0]) and np.all(high >= bounds[1]):
             rows = np.arange(len(self))
         elif self._cache.boxes > 0 or ("grid",) in self._cache.values:

@@ -44,9 +44,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .kdtree import NearestNeighbors
-from .rotations import generators, log_rotation, vector_size
+from .rotations import generators, vector_size
 from .similarity import FloatArray, Similarity
 
+# Standard deviations a stated uncertainty must cover: a result is reliable only when this many
+# lie within the tolerances (frisicp_core.verdict), and an undetermined answer's prior spans the
+# whole range in this many (Uncertainty.undetermined).
+SIGMAS = 3.0
 # Neighbours whose covariance gives a point's surface normal. Fewer leave the normals of a noisy
 # cloud noisy, and a noisy model's normals bias the point-to-plane estimate and hide part of its
 # spread (two noisy views of rs1, 8 noise draws: 10 neighbours biased the scale 0.22 % and made
@@ -110,26 +114,35 @@ class Uncertainty:
         covariance: FloatArray = carry @ self.covariance @ carry.T
         return Uncertainty(covariance, q, self.widening)
 
-    def with_alternative(self, alternative: Similarity, answer: Similarity) -> Uncertainty:
-        """This uncertainty of ``answer``, widened by a distinct pose that fits about as well
-        (an ambiguity, :mod:`frisicp_core.ambiguity`): the covariance plus delta delta^T, delta
-        the alternative's offset from the answer in the parameters of the module doc
-        (log(s'/s), the rotation vector of R' R^T, where the centre lands). The data do not
-        decide between the two, so the answer's error may be as large as that offset; the
-        local covariance alone would claim a certainty the clouds do not give."""
-        m = self.dim
-        data_centroid = answer.inverse().apply(self.centre[None])[0]
-        delta = np.concatenate(
-            [
-                [np.log(alternative.scale / answer.scale)],
-                log_rotation(alternative.rotation @ answer.rotation.T),
-                alternative.apply(data_centroid[None])[0] - self.centre,
-            ]
-        )
-        if delta.shape[0] != 1 + vector_size(m) + m or not np.all(np.isfinite(delta)):
-            return self
-        covariance: FloatArray = self.covariance + np.outer(delta, delta)
-        return Uncertainty(covariance, self.centre, self.widening)
+    @classmethod
+    def undetermined(
+        cls,
+        answer: Similarity,
+        centre: FloatArray,
+        scale_range: tuple[float, float],
+        model_bounds: tuple[FloatArray, FloatArray],
+        data_reach: float,
+    ) -> Uncertainty:
+        """The uncertainty of an ``answer`` the data do not determine: the clouds do not fit
+        there, or another distinct pose fits as well (:class:`frisicp_core.verdict.Verdict`'s
+        ``determined``). Its local covariance describes the neighbourhood of a pose that may be
+        anywhere, so the honest statement is the prior over every pose the answer could be
+        instead: :data:`SIGMAS` sigmas span every rotation (180 deg), every scale in
+        ``scale_range`` (the plausible interval, :data:`frisicp_core.verdict.SCALE_RANGE` about
+        the clouds' size ratio) and every place the data's centroid may land while some of the
+        data lies in the model's bounding box ``model_bounds`` (low, high corners): the box's
+        farthest corner plus ``data_reach`` (the data's largest distance from its centroid)
+        at the largest plausible scale, each from the answer. A fusing filter reads it as
+        "no information"; :attr:`RegistrationResult.competitor` names the rival pose when there
+        is one. Diagonal in the module doc's parameters, about ``centre``."""
+        c = np.asarray(centre, dtype=np.float64).reshape(-1)
+        m, r = c.shape[0], vector_size(c.shape[0])
+        low, high = (np.asarray(corner, dtype=np.float64).reshape(-1) for corner in model_bounds)
+        log_scale = max(abs(np.log(answer.scale / bound)) for bound in scale_range) / SIGMAS
+        farthest_corner = float(np.linalg.norm(np.maximum(np.abs(c - low), np.abs(c - high))))
+        landing = farthest_corner + max(scale_range) * data_reach
+        sigmas = np.concatenate([[log_scale], np.full(r, np.pi / SIGMAS), np.full(m, landing / SIGMAS)])
+        return cls(np.diag(sigmas**2), c)
 
     def pose_covariance(self, similarity: Similarity) -> FloatArray:
         """The 6 x 6 covariance of the pose (R, t) in ROS's order (x, y, z, roll, pitch, yaw).

@@ -32,7 +32,7 @@ from .fit import Fit
 from .overlap import MIN_FRACTION
 from .points import MAX_SPREAD
 from .similarity import Similarity
-from .uncertainty import Uncertainty
+from .uncertainty import SIGMAS, Uncertainty
 
 SCALE_RANGE = 10.0
 MAX_RELATIVE_RMS = 0.1
@@ -41,16 +41,18 @@ MAX_RELATIVE_RMS = 0.1
 # answers. At 0.25 it refused 9 of 224 right answers of benchmarks/trustworthy.py (two real scans
 # whose occlusion edges miss each other: 37-38 %) and caught no wrong one the others missed.
 MAX_NEAR_SHARE = 0.5
-# A result is reliable only when this many standard deviations lie within the tolerances.
-SIGMAS = 3.0
 
 
 @dataclass(frozen=True)
 class Verdict:
-    """``reliable`` is True when every check passed; ``reason`` says which failed ('' if none)."""
+    """``reliable`` is True when every check passed; ``reason`` says which failed ('' if none).
+    ``determined`` is False when a check other than the tolerance check failed: the clouds do
+    not fit at the answer, or another distinct pose fits as well, so its local uncertainty says
+    nothing about how far off it is (:meth:`frisicp_core.uncertainty.Uncertainty.undetermined`)."""
 
     reliable: bool
     reason: str = ""
+    determined: bool = True
 
 
 def judge(
@@ -77,7 +79,7 @@ def judge(
     problems = []
     overlaps = [v for v in (overlap_forward, overlap_backward) if not math.isnan(v)]
     if not all(math.isfinite(v) for v in (similarity.scale, rms, *overlaps)) or not overlaps:
-        return Verdict(False, "the estimate is not finite")
+        return Verdict(False, "the estimate is not finite", determined=False)
     if not converged:
         problems.append("did not converge")
     for side, value in zip(("data", "model"), spreads, strict=True):
@@ -113,9 +115,10 @@ def judge(
             f" ratio {competitor.merit_ratio:.3f}; scale {competitor.similarity.scale:.6g},"
             f" turned {np.degrees(competitor.similarity.rotation_angle()):.3g} deg)"
         )
+    determined = not problems
     if uncertainty is not None and tolerance is not None:
         problems.extend(_uncertain(uncertainty, tolerance, model_diagonal))
-    return Verdict(not problems, "; ".join(problems))
+    return Verdict(not problems, "; ".join(problems), determined)
 
 
 def within_tolerance(uncertainty: Uncertainty, tolerance: Tolerance, diagonal: float) -> bool:

@@ -3,8 +3,10 @@
 import numpy as np
 import pytest
 
-from frisicp_core import Similarity, bumpy_surface, judge, register
+from frisicp_core import Similarity, Tolerance, axis_angle_rotation, bumpy_surface, judge, register
+from frisicp_core.ambiguity import Competitor
 from frisicp_core.points import spread
+from frisicp_core.uncertainty import Uncertainty
 
 GOOD = dict(
     converged=True, rms=0.01, overlap_forward=0.9, overlap_backward=0.4, moment_scale=2.0, model_radius=1.0
@@ -29,6 +31,24 @@ def test_a_plausible_result_is_reliable_with_no_reason():
 def test_each_failed_check_is_named(change, reason):
     verdict = judge(Similarity(2.5, np.eye(3), np.zeros(3)), **{**GOOD, **change})
     assert not verdict.reliable and reason in verdict.reason
+
+
+def test_a_misfit_or_a_rival_pose_leaves_the_answer_undetermined_a_wide_sigma_does_not():
+    """``determined`` tells a pose the data locate (only its sigmas exceed the tolerances) from
+    one they do not (a misfit, an ambiguity): the registration states the prior for the latter."""
+    answer = Similarity(2.5, np.eye(3), np.zeros(3))
+    rival = Competitor(Similarity(2.5, axis_angle_rotation([0, 0, 1], 0.5), np.zeros(3)), 1.01, 29.0)
+    wide = Uncertainty(np.diag([1e-4] * 4 + [1.0] * 3), np.zeros(3))
+    limits = dict(tolerance=Tolerance(), model_diagonal=4.0)
+    assert judge(answer, **GOOD).determined
+    uncertain = judge(answer, **GOOD, uncertainty=wide, **limits)
+    assert (
+        not uncertain.reliable
+        and uncertain.determined
+        and "not determined to the tolerance" in uncertain.reason
+    )
+    assert not judge(answer, **GOOD, competitor=rival, **limits).determined
+    assert not judge(answer, **{**GOOD, "rms": 0.5}).determined
 
 
 @pytest.mark.parametrize("scale", [1e-39, 1.5e40, 0.1, 30.0])

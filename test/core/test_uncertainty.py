@@ -82,16 +82,37 @@ def test_a_plane_leaves_its_sliding_directions_undetermined() -> None:
     assert result.uncertainty.translation > 30 * surface.translation
 
 
-def test_an_alternative_that_fits_as_well_widens_the_sigmas_to_reach_it() -> None:
-    """An ambiguous answer reports sigmas that cover the competing pose: its offset, in the
-    covariance's own parameters (a perturbation about the centre), lies within 1 sigma."""
-    centre = TRUTH.apply(np.array([0.3, -0.2, 0.1]))
-    local = Uncertainty(np.diag([1e-6] * 7), centre)
-    xi = np.array([0.02, 0.0, 0.05, -0.03, 0.01, -0.02, 0.03])  # 2 % in scale, ~3.4 deg, a shift
-    alternative = perturbed(TRUTH, xi, centre)
-    widened = local.with_alternative(alternative, TRUTH)
-    np.testing.assert_allclose(widened.covariance - local.covariance, np.outer(xi, xi), atol=1e-12)
-    assert widened.scale == pytest.approx(0.02, rel=0.01)
-    assert widened.rotation_deg == pytest.approx(np.degrees(np.linalg.norm(xi[1:4])), rel=0.01)
-    assert widened.translation == pytest.approx(np.linalg.norm(xi[4:]), rel=0.01)
-    assert local.with_alternative(TRUTH, TRUTH).covariance == pytest.approx(local.covariance)
+def test_an_undetermined_answer_states_the_prior_which_covers_every_plausible_pose() -> None:
+    """Where the data do not determine the pose, 3 sigmas reach every rotation (180 deg), every
+    plausible scale and every place the data's centroid may land with some of the data (0.1
+    from its centroid, at most 20 times that in the model) in the model's box, whatever the
+    answer was."""
+    rng = np.random.default_rng(5)
+    low, high = np.array([-1.0, -2.0, 0.0]), np.array([3.0, 1.0, 0.5])
+    scales = (0.2, 20.0)
+    answer = Similarity(0.5, axis_angle_rotation([1.0, 0.0, 0.0], 2.0), np.array([2.0, 0.0, 0.1]))
+    centre = np.array([2.5, -1.5, 0.4])
+    prior = Uncertainty.undetermined(answer, centre, scales, (low, high), data_reach=0.1)
+    assert prior.rotation_deg == pytest.approx(60.0)
+    assert prior.scale == pytest.approx(np.log(20.0 / 0.5) / 3)
+    corner = np.linalg.norm([3.5, 2.5, 0.4])  # (-1, 1, 0)
+    assert prior.translation == pytest.approx((corner + 20.0 * 0.1) / 3)
+    for _ in range(200):
+        landing = rng.uniform(low, high) + 20.0 * 0.1 * rng.uniform(-1, 1, 3) / np.sqrt(3)
+        turn = np.degrees(rng.uniform(0.0, np.pi))
+        scale = float(np.exp(rng.uniform(*np.log(scales))))
+        assert turn <= 3 * prior.rotation_deg + 1e-9
+        assert abs(np.log(scale / answer.scale)) <= 3 * prior.scale + 1e-9
+        assert np.linalg.norm(landing - centre) <= 3 * prior.translation + 1e-9
+
+
+def test_another_objects_answer_is_refused_with_the_prior_as_its_uncertainty() -> None:
+    """A sphere registered onto the bumpy surface: no pose is right, and the result says it
+    knows nothing (3 sigma: a half turn) instead of a local covariance about a random pose."""
+    rng = np.random.default_rng(6)
+    sphere = rng.normal(size=(3000, 3))
+    sphere /= np.linalg.norm(sphere, axis=1, keepdims=True)
+    result = register(sphere, bumpy_surface(3000))
+    assert not result.reliable
+    assert result.uncertainty is not None
+    assert result.uncertainty.rotation_deg == pytest.approx(60.0)
