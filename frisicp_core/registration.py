@@ -35,6 +35,7 @@ are built once per level, never per iteration.
 
 from __future__ import annotations
 
+import functools
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
@@ -47,7 +48,7 @@ from .config import Initialization, Method, RegistrationConfig
 from .fit import Fit, measure_fit
 from .global_search import feature_starts
 from .hypotheses import beyond_guess, covariance_scale_bounds, initial_hypotheses
-from .levels import Pairs, Pyramid, level_motion
+from .levels import Level, Pairs, Pyramid, level_motion
 from .points import as_point_set, centroid, check_same_dimension, rms_radius, spread
 from .poses import PoseBatch
 from .prepared import PreparedModel
@@ -59,7 +60,7 @@ from .solver import ACCELERATE_FROM, ACCELERATE_FROM_TRACKING, Solver, compare_f
 from .threads import one_thread
 from .uncertainty import Uncertainty
 from .units import Units, magnitude_exponent
-from .verdict import SCALE_RANGE, judge
+from .verdict import MAX_NEAR_SHARE, SCALE_RANGE, judge
 from .window import cut
 
 # Most passes a probe of the answer (frisicp_core.ambiguity) takes to settle on the screening
@@ -280,8 +281,9 @@ def _register(
         )
         reports, first, accelerate_from = [report], 1, ACCELERATE_FROM_TRACKING
     elif len(finalists) > 1 or (searching and last > 0):
+        near_share = _near_share(levels[0]) if bidirectional else None
         (sim, report, pairs), runners_up = compare_finalists(
-            solver, levels[0], finalists, level_motion(config, 0, last)
+            solver, levels[0], finalists, level_motion(config, 0, last), near_share=near_share
         )
         reports, first = [report], 1
         if (
@@ -300,7 +302,11 @@ def _register(
             starts = feature_starts(data_set, model, rng)
             if starts:
                 (sim, report, pairs), runners_up = compare_finalists(
-                    solver, levels[0], [sim, *runners_up, *starts], level_motion(config, 0, last)
+                    solver,
+                    levels[0],
+                    [sim, *runners_up, *starts],
+                    level_motion(config, 0, last),
+                    near_share=near_share,
                 )
                 reports = [report]
     # The full sets are solved by point-to-plane steps (frisicp_core.refine) when polishing; ICP
@@ -481,6 +487,20 @@ class _Refiner:
         return sim, pairs
 
 
+def _near_share(level: Level) -> Callable[[Similarity], float]:
+    """A pose's share of near misses on ``level``'s trees (:attr:`frisicp_core.fit.Fit.best_near_share`:
+    where the clouds meet, how much of them does not coincide)."""
+    data_tree = level.data_tree
+    assert data_tree is not None  # bidirectional
+
+    def near_share(sim: Similarity) -> float:
+        return measure_fit(
+            sim, data_tree, level.model_tree, level.data_spacing, level.model_spacing
+        ).best_near_share
+
+    return near_share
+
+
 def _covering(pairs: Pairs) -> bool:
     """True when each cloud's estimated overlap with the other is at least :data:`_COMPLETE`."""
     if pairs.backward is None:
@@ -502,10 +522,21 @@ def _probe(
     there and within :data:`_NOMINATE` of its merit there are run down the levels like the
     answer and compared with it on the finest level ICP ran. Returns the competitors within the
     margin (best first), and a distinct pose that fits clearly better (with its final
-    pairs), if any. The screening's ``runners_up`` are run down too. (Clouds that cover each other
+    pairs), if any: when the answer passes the fit check, a clearly lower merit that does not
+    is no better (:func:`frisicp_core.solver.compare_finalists`: reached by swelling over more of
+    a cloud). A competitor is judged by the merit alone: an answer some rival pose matches
+    about as well is doubtful, whether or not the rival fits (a wrong answer that passes the
+    fit check had rivals that did not, on 5-10 % crops of the development scenes). The
+    screening's ``runners_up`` are run down too. (Clouds that cover each other
     are probed as well: two views of a dome-shaped depth frame overlap all but completely, and
     still turn a few degrees either way about the sensor at the same merit.)"""
     merit = float(pairs.merit[0])
+    near_share = _near_share(refine.levels[refine.last])
+
+    def fits(pose: Similarity) -> bool:
+        return near_share(pose) <= MAX_NEAR_SHARE
+
+    answer_fits = functools.cache(lambda: fits(sim))
     centre = centroid(data)
     diagonal = float(np.linalg.norm(model.max(axis=0) - model.min(axis=0)))
     starts = [sim, *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data))]
@@ -532,9 +563,9 @@ def _probe(
         ratio = float(pairs.merit[0]) / merit
         if apart <= 1.0 or not np.isfinite(ratio):
             continue
-        if ratio < 1.0 - AMBIGUITY_MARGIN:
+        if ratio < 1.0 - AMBIGUITY_MARGIN and (fits(refined) or not answer_fits()):
             return [], (refined, pairs)
-        if ratio <= 1.0 + AMBIGUITY_MARGIN:
+        if abs(ratio - 1.0) <= AMBIGUITY_MARGIN:
             found.append(Competitor(refined, ratio, apart))
         if len(kept) == _PROBE_REFINED:
             break

@@ -18,6 +18,7 @@ from .overlap import Selection, select_pairs
 from .poses import PoseBatch
 from .result import IterationRecord, LevelReport
 from .similarity import FloatArray, Similarity
+from .verdict import CLEAR_NEAR_SHARE, MAX_NEAR_SHARE
 
 # Most passes a hypothesis gets on the screening level to settle into its local minimum.
 _SCREENING_PASSES = 60
@@ -420,13 +421,28 @@ class Solver:
 
 
 def compare_finalists(
-    solver: Solver, level: Level, finalists: list[Similarity], relative_motion: float, margin: float = 0.15
+    solver: Solver,
+    level: Level,
+    finalists: list[Similarity],
+    relative_motion: float,
+    margin: float = 0.15,
+    near_share: Callable[[Similarity], float] | None = None,
 ) -> tuple[tuple[Similarity, LevelReport, Pairs], list[Similarity]]:
     """Run every finalist of the screening on the first dense level (the coarsest points against
     the full sets) and keep the one that ends with the lowest merit: with exact nearest
     neighbours the merits rank basins more reliably than on the thinned screening level.
-    Also returns the others' poses there whose merits are within ``margin`` of the best's, best
-    first (runners-up: possible competitors)."""
+
+    With ``near_share`` (a pose's share of near misses, :mod:`frisicp_core.fit`): when the
+    lowest merit's pose fails the verdict's fit check (:data:`~frisicp_core.verdict.MAX_NEAR_SHARE`),
+    the lowest merit among the poses that fit clearly (:data:`~frisicp_core.verdict.CLEAR_NEAR_SHARE`)
+    wins. The merit rewards explaining more of each cloud (TrICP's xi^-(1 + lambda)), fair
+    between poses that keep alike shares, not between a 10 % crop laid where it belongs (it
+    covers a tenth of the scene: backward xi 0.1) and one swollen over half the scene at six
+    times the residuals, which the merit prefers and the fit check refuses. Overruling the
+    objective takes a clear fit: a pose that merely passes the check may be another misfit.
+
+    Also returns the others' poses there whose merits are within ``margin`` of the winner's,
+    best first (runners-up: possible competitors)."""
     outcomes = []
     for pose in finalists:
         history_before = len(solver.history)
@@ -434,6 +450,12 @@ def compare_finalists(
         outcomes.append((float(outcome[2].merit[0]), outcome, solver.history[history_before:]))
         del solver.history[history_before:]
     outcomes.sort(key=lambda item: item[0])
-    lowest, best, history = outcomes[0]
+    if near_share is not None and not near_share(outcomes[0][1][0]) <= MAX_NEAR_SHARE:
+        clear = next(
+            (k for k in range(1, len(outcomes)) if near_share(outcomes[k][1][0]) <= CLEAR_NEAR_SHARE), None
+        )
+        if clear is not None:
+            outcomes.insert(0, outcomes.pop(clear))
+    chosen, best, history = outcomes[0]
     solver.history.extend(history)
-    return best, [outcome[0] for merit, outcome, _ in outcomes[1:] if merit <= (1.0 + margin) * lowest]
+    return best, [outcome[0] for merit, outcome, _ in outcomes[1:] if abs(merit - chosen) <= margin * chosen]
