@@ -26,12 +26,13 @@ development data: the method was built looking at them. Held-out data checks the
 
 Each case with both clouds capped at 10,000 random points (the node's cap until issue 19; the
 node now caps the data only and registers against the whole prepared model, which the full
-resolution rows come closer to), crops and frames of rs1 and the bunny also at full resolution. Each case with a known answer is also registered from the truth (warm, before the cold retry):
+resolution rows come closer to), crops and frames of rs1 and the bunny also at full resolution.
+Each case with a known answer is also registered from the truth (warm, before the cold retry):
 *truth start right and reliable* says the data determine the pose to the tolerance there, so a
 refusal is the search's miss; otherwise the refusal is the honest answer. Scored: *right* =
-rotation < 1 deg, scale < 1 %, and where
-the data's centroid lands < 0.5 % of the model's diagonal off; *success* = right and reliable;
-*wrong and reliable* = the failure this package must never emit. Calibration: among the reliable
+rotation < 1 deg, scale < 1 %, and where the data's centroid lands < 0.5 % of the model's
+diagonal off; *success* = right and reliable; *wrong and reliable* = the failure this package
+must never emit. Calibration: among the reliable
 (and among all) results, the share whose error is within three of its own sigmas, per component
 (rotation angle against 3 rotation_deg, |log scale| against 3 scale, the centroid's offset
 against 3 translation).
