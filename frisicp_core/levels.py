@@ -13,12 +13,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from .config import RegistrationConfig
+from .fit import Fit, measure_fit
 from .kdtree import NearestNeighbors
 from .overlap import Selection
 from .points import centroid
 from .poses import PoseBatch
 from .prepared import PreparedModel
-from .similarity import FloatArray
+from .similarity import FloatArray, Similarity
 
 # Points sampled to measure a set's spacing (median distance to the nearest other point).
 _SPACING_SAMPLE = 256
@@ -67,6 +68,12 @@ class Level:
     def motion(self, old: PoseBatch, new: PoseBatch) -> FloatArray:
         """RMS over the data of ||new(a) - old(a)||, per pose."""
         return old.motion(new, self.data_mean, self.data_second_moment)
+
+    def fit(self, sim: Similarity) -> Fit:
+        """The hits and near misses of ``sim`` on this level's trees (:func:`frisicp_core.fit.measure_fit`;
+        bidirectional levels only: it needs the data's tree)."""
+        assert self.data_tree is not None
+        return measure_fit(sim, self.data_tree, self.model_tree, self.data_spacing, self.model_spacing)
 
 
 @dataclass(frozen=True)

@@ -45,10 +45,10 @@ from numpy.typing import ArrayLike
 
 from .ambiguity import AMBIGUITY_MARGIN, Competitor, probe_starts, separation
 from .config import Initialization, Method, RegistrationConfig
-from .fit import Fit, measure_fit
+from .fit import Fit
 from .global_search import feature_starts
 from .hypotheses import beyond_guess, covariance_scale_bounds, initial_hypotheses
-from .levels import Level, Pairs, Pyramid, level_motion
+from .levels import Pairs, Pyramid, level_motion
 from .points import as_point_set, centroid, check_same_dimension, rms_radius, spread
 from .poses import PoseBatch
 from .prepared import PreparedModel
@@ -281,7 +281,7 @@ def _register(
         )
         reports, first, accelerate_from = [report], 1, ACCELERATE_FROM_TRACKING
     elif len(finalists) > 1 or (searching and last > 0):
-        near_share = _near_share(levels[0]) if bidirectional else None
+        near_share = (lambda pose: levels[0].fit(pose).best_near_share) if bidirectional else None
         (sim, report, pairs), runners_up = compare_finalists(
             solver, levels[0], finalists, level_motion(config, 0, last), near_share=near_share
         )
@@ -397,8 +397,7 @@ def _register(
     competitor = competitors[0] if competitors else None
     fit: Fit | None = None
     if bidirectional:
-        assert final.data_tree is not None
-        fit = measure_fit(sim, final.data_tree, final.model_tree, final.data_spacing, final.model_spacing)
+        fit = final.fit(sim)
     verdict = judge(
         sim,
         converged=reports[-1].converged,
@@ -487,20 +486,6 @@ class _Refiner:
         return sim, pairs
 
 
-def _near_share(level: Level) -> Callable[[Similarity], float]:
-    """A pose's share of near misses on ``level``'s trees (:attr:`frisicp_core.fit.Fit.best_near_share`:
-    where the clouds meet, how much of them does not coincide)."""
-    data_tree = level.data_tree
-    assert data_tree is not None  # bidirectional
-
-    def near_share(sim: Similarity) -> float:
-        return measure_fit(
-            sim, data_tree, level.model_tree, level.data_spacing, level.model_spacing
-        ).best_near_share
-
-    return near_share
-
-
 def _covering(pairs: Pairs) -> bool:
     """True when each cloud's estimated overlap with the other is at least :data:`_COMPLETE`."""
     if pairs.backward is None:
@@ -531,10 +516,10 @@ def _probe(
     are probed as well: two views of a dome-shaped depth frame overlap all but completely, and
     still turn a few degrees either way about the sensor at the same merit.)"""
     merit = float(pairs.merit[0])
-    near_share = _near_share(refine.levels[refine.last])
+    level = refine.levels[refine.last]
 
     def fits(pose: Similarity) -> bool:
-        return near_share(pose) <= MAX_NEAR_SHARE
+        return level.fit(pose).best_near_share <= MAX_NEAR_SHARE
 
     answer_fits = functools.cache(lambda: fits(sim))
     centre = centroid(data)
