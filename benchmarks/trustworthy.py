@@ -114,6 +114,15 @@ class Spec:
     def seed(self) -> int:
         return zlib.crc32(f"{self.suite}/{self.scene}/{self.index}/{self.cap}".encode())
 
+    @property
+    def crop_share(self) -> float | None:
+        """The share of the scene a crop suite's crop holds (None for the other suites)."""
+        if self.suite == "crop onto scene":
+            return CROP_SHARES[self.index % len(CROP_SHARES)]
+        if self.suite == "scene onto crop":
+            return REVERSE_SHARES[self.index % len(REVERSE_SHARES)]
+        return None
+
 
 def specs(quick: bool) -> list[Spec]:
     """Every case of the full run (or one per suite for ``--quick``)."""
@@ -163,12 +172,12 @@ def build(spec: Spec, data_dir: Path, rng: np.random.Generator) -> scenes.SceneC
             shape = scenes.unrelated_shape(spec.scene, 8000, rng)
         return scenes.unrelated_case(shape, bunny, spec.scene, bool(spec.index), rng)
     scene = scenes.object_cloud(data_dir, spec.scene)
-    if spec.suite == "crop onto scene":
-        share = CROP_SHARES[spec.index % len(CROP_SHARES)]
-        return scenes.crop_case(scene, spec.scene, share, float(rng.choice(PAPER_SCALES)), rng)
-    if spec.suite == "scene onto crop":
-        share = REVERSE_SHARES[spec.index % len(REVERSE_SHARES)]
-        return scenes.crop_case(scene, spec.scene, share, float(rng.choice(PAPER_SCALES)), rng, reverse=True)
+    share = spec.crop_share
+    if share is not None:
+        reverse = spec.suite == "scene onto crop"
+        return scenes.crop_case(
+            scene, spec.scene, share, float(rng.choice(PAPER_SCALES)), rng, reverse=reverse
+        )
     if spec.suite == "sparse map onto scene":
         return scenes.sparse_map_case(scene, spec.scene, rng)
     if spec.suite == "frames":
@@ -241,6 +250,7 @@ def record(
         "suite": spec.suite,
         "scene": spec.scene,
         "case": case.name,
+        "crop_share": spec.crop_share,
         "cap": spec.cap or "full",
         "reliable": result.reliable,
         "reason": result.reason,
@@ -289,10 +299,9 @@ def determined(records: list[dict[str, Any]]) -> tuple[list[str], list[list[obje
     for entry in records:
         if "truth_start" not in entry:
             continue
-        name = entry["suite"]
-        if name in ("crop onto scene", "scene onto crop"):
-            percent = int(entry["case"].split("% ")[0].rsplit(" ", 1)[1])
-            name += ", " + ("< 10 %" if percent < 10 else "10-29 %" if percent < 30 else ">= 30 %")
+        name, crop = entry["suite"], entry.get("crop_share")
+        if crop is not None:
+            name += ", " + ("< 10 %" if crop < 0.1 else "10-29 %" if crop < 0.3 else ">= 30 %")
         groups.setdefault(name, []).append(entry)
     rows: list[list[object]] = []
     for name, group in groups.items():
