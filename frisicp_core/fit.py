@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .kdtree import NearestNeighbors
+from .planes import least_variance, scatter
 from .similarity import FloatArray, Similarity
 
 SAMPLE = 1500
@@ -120,8 +121,7 @@ def _closest(tree: NearestNeighbors, queries: FloatArray) -> _Closest:
     patches = tree.points[neighbours]
     mean = patches.mean(axis=1)
     centred = patches - mean[:, None, :]
-    values, vectors = np.linalg.eigh(np.einsum("nki,nkj->nij", centred, centred) / neighbours.shape[1])
-    normal = vectors[:, :, 0]
+    smallest, normal = least_variance(scatter(centred))
     to_plane = np.abs(np.einsum("ni,ni->n", queries - mean, normal))
-    roughness = np.sqrt(np.maximum(values[:, 0], 0.0))
+    roughness = np.sqrt(np.maximum(smallest / neighbours.shape[1], 0.0))
     return _Closest(np.sqrt(dist_sq[:, 0]), to_plane, roughness)

@@ -27,6 +27,7 @@ import numpy as np
 
 from .kdtree import NearestNeighbors
 from .overlap import select_pairs
+from .planes import least_variance, scatter
 from .rotations import exp_rotation, log_rotation, vector_size
 from .similarity import FloatArray, Similarity
 from .uncertainty import NORMAL_NEIGHBOURS, Uncertainty, estimate_uncertainty, pair_jacobians
@@ -43,8 +44,9 @@ _DAMPING = 1e-9
 
 
 class ModelNormals:
-    """Unit normals of the model's points (Hoppe et al. 1992: the least-variance direction of
-    the :data:`NORMAL_NEIGHBOURS` nearest points), computed when first asked for and kept."""
+    """Unit normals of the model's points (:mod:`frisicp_core.planes`: the least-variance
+    direction of the :data:`NORMAL_NEIGHBOURS` nearest points), computed when first asked for
+    and kept."""
 
     def __init__(self, tree: NearestNeighbors, neighbours: int = NORMAL_NEIGHBOURS) -> None:
         self.tree = tree
@@ -56,9 +58,7 @@ class ModelNormals:
         if missing.size:
             _, neighbours = self.tree.query_k(self.tree.points[missing], self.neighbours)
             patches = self.tree.points[neighbours]
-            centred = patches - patches.mean(axis=1, keepdims=True)
-            _, vectors = np.linalg.eigh(np.einsum("nki,nkj->nij", centred, centred))
-            self._normals[missing] = vectors[:, :, 0]
+            _, self._normals[missing] = least_variance(scatter(patches - patches.mean(axis=1, keepdims=True)))
         values: FloatArray = self._normals[index]
         return values
 

@@ -268,21 +268,36 @@ class Solver:
         passes: int,
         done: Callable[[Similarity], bool] | None = None,
     ) -> tuple[PoseBatch, FloatArray]:
-        """Plain ICP steps for every pose of the batch until each moves the data by less than
+        """ICP steps for every pose of the batch until its plain step moves the data by less than
         ``tolerance`` (at most ``passes``), or ``done`` says its pose needs no more; the poses
-        reached and their merits."""
+        reached and their merits. Steps are Anderson-accelerated as in :meth:`screen` (a
+        proposal is taken only where it lowers the merit): probes displaced by a clearly wrong
+        amount crawl back along shallow directions, 15 plain passes on the bunny, 11 so."""
         pairs = self.correspond(level, poses)
         merit = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
         active = np.flatnonzero(np.isfinite(merit))
         pairs = rows_of(pairs, active)  # the pairs of the active poses, in their order
-        for _ in range(passes):
+        accelerators = (
+            [AndersonAccelerator(poses[k], level.data_mean, self.model_radius) for k in range(len(poses))]
+            if self.config.acceleration
+            else []
+        )
+        for iteration in range(1, passes + 1):
             if active.size == 0 or self.deadline.passed():
                 break
             current = poses.take(active)
             stepped, valid = self.step(level, pairs)
+            stepped = current.where(valid, stepped)
             moved = level.motion(current, stepped)
-            poses = poses.assign(active, current.where(valid, stepped))
-            pairs = self.correspond(level, poses.take(active))
+            reached, pairs = self._screening_step(
+                level,
+                current,
+                stepped,
+                merit[active],
+                [accelerators[k] for k in active] if accelerators else [],
+                iteration,
+            )
+            poses = poses.assign(active, reached)
             merit[active] = np.where(np.isfinite(pairs.merit), pairs.merit, np.inf)
             going = valid & (moved > tolerance)
             if done is not None:

@@ -16,7 +16,7 @@ The covariance is (p, p), p = 1 + m(m - 1)/2 + m, in the order (sigma, w, d): 7 
 **Model** (Censi 2007, "An accurate closed-form estimate of ICP's covariance", for
 point-to-plane residuals; Bonnabel, Barczyk and Goulette 2016): each pair (a, b) of the final
 pass, forward and backward alike, gives a point-to-plane residual r = n . (T(a) - b), n the
-model's unit normal at b (:func:`surface_normals`). Its Jacobian with respect to xi is
+model's unit normal at b (:class:`frisicp_core.refine.ModelNormals`). Its Jacobian with respect to xi is
 
     J = [n . y,  (n . G_k y)_k,  n],   y = T(a) - c,
 
@@ -43,7 +43,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .kdtree import NearestNeighbors
 from .rotations import generators, vector_size
 from .similarity import FloatArray, Similarity
 
@@ -171,19 +170,6 @@ def _largest_eigenvalue(block: FloatArray) -> float:
     if not np.all(np.isfinite(block)):
         return float("inf")
     return float(max(np.linalg.eigvalsh(block)[-1], 0.0))
-
-
-def surface_normals(tree: NearestNeighbors, indices: np.ndarray, k: int = NORMAL_NEIGHBOURS) -> FloatArray:
-    """Unit normals of the stored points ``indices`` of ``tree``: the direction of least variance
-    of each point's ``k`` nearest neighbours (Hoppe et al. 1992). The sign is arbitrary."""
-    points = tree.points
-    _, neighbours = tree.query_k(points[indices], k)
-    patches = points[neighbours]  # (n, k, m)
-    centred = patches - patches.mean(axis=1, keepdims=True)
-    scatter = np.einsum("nki,nkj->nij", centred, centred)
-    _, vectors = np.linalg.eigh(scatter)
-    normals: FloatArray = vectors[:, :, 0]
-    return normals
 
 
 def pair_jacobians(mapped: FloatArray, normals: FloatArray, centre: FloatArray) -> FloatArray:
