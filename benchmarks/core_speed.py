@@ -44,7 +44,6 @@ from frisicp_core import (
     RegistrationConfig,
     Similarity,
     axis_angle_rotation,
-    read_points,
     register,
     rotation_angle,
 )
@@ -226,8 +225,10 @@ def write_report(path: Path, command: str, runs: list[Run], lines: list[str], re
 
 
 def main(argv: list[str] | None = None) -> int:
-    # Imported here: speed_ab.py's workers import this module next to an older frisicp_core.
+    # Imported here: speed_ab.py's workers import this module next to an older frisicp_core,
+    # which may lack read_points and whose frisicp_bench would not match.
     from frisicp_bench import script
+    from frisicp_core import read_points
 
     parser = script.parser(__file__, __doc__, "2 scales, one run each", data=True, report=True, repeats=5)
     args = script.parse(parser, argv)

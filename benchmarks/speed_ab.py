@@ -13,6 +13,7 @@ Usage::
 
     python benchmarks/speed_ab.py 7e9cfcc^            # before the partial-overlap core vs the working tree
     python benchmarks/speed_ab.py A --after B --threads 0 --repeats 7 --out docs/speed_ab.md
+    python benchmarks/speed_ab.py 67ac26e^ --warm     # before issue 14, warm starts (tracking)
     python benchmarks/speed_ab.py --quick             # HEAD vs the working tree, 2 scales, once -> build/
 
 ``--threads 1`` (default) sets OMP_NUM_THREADS=1 in both workers, as ``make bench-paper`` does;
@@ -35,32 +36,39 @@ import time
 from datetime import date
 from pathlib import Path
 
+import numpy as np
+
 ROOT = Path(__file__).resolve().parents[1]
 WORKTREE = "worktree"
-WORKER = "--worker"  # argv[1] of a worker process, argv[2] the bunny's path
+WORKER = "--worker"  # argv[1] of a worker process, argv[2] the bunny's points (.npy)
 
 
-def worker(bunny: str) -> int:
-    """Serve timing requests on stdin, one JSON line each: {"scale": s} -> seconds and accuracy.
+def worker(points: str) -> int:
+    """Serve timing requests on stdin, one JSON line each: {"scale": s, "warm": bool} -> seconds
+    and accuracy. Warm: started where core_speed's warm start puts it (2 deg / 2 % off the truth,
+    the same start in both workers: its generator is seeded by the scale).
 
     Imports only its revision's frisicp_core and core_speed's case (not frisicp_bench, which
-    needs today's core)."""
-    import numpy as np
-    from core_speed import forward_similarity
+    needs today's core). The points come read, as a .npy file: an older core may have no reader."""
+    from core_speed import forward_similarity, warm_start
 
     import frisicp_core
-    from frisicp_core import read_points, register, rotation_angle
+    from frisicp_core import RegistrationConfig, register, rotation_angle
 
-    model = read_points(bunny)
+    model = np.load(points)
     print(json.dumps({"core": str(Path(frisicp_core.__file__).parent)}), flush=True)
     for line in sys.stdin:
-        scale = json.loads(line)["scale"]
+        request = json.loads(line)
+        scale = request["scale"]
         forward = forward_similarity(scale)
         data = forward.apply(model)
-        start = time.perf_counter()
-        result = register(data, model)
-        seconds = time.perf_counter() - start
         truth = forward.inverse()
+        config = RegistrationConfig()
+        if request.get("warm"):
+            config = RegistrationConfig(initial=warm_start(truth, np.random.default_rng(round(10 * scale))))
+        start = time.perf_counter()
+        result = register(data, model, config)
+        seconds = time.perf_counter() - start
         rotation = float(np.degrees(rotation_angle(result.similarity.rotation @ truth.rotation.T)))
         scale_error = abs(result.similarity.scale / truth.scale - 1.0)
         print(
@@ -72,7 +80,7 @@ def worker(bunny: str) -> int:
 class Worker:
     """One revision's frisicp_core in its own process."""
 
-    def __init__(self, label: str, core_parent: Path, threads: int, bunny: Path) -> None:
+    def __init__(self, label: str, core_parent: Path, threads: int, points: Path) -> None:
         env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(core_parent), str(ROOT / "benchmarks")]))
         if threads:
             env["OMP_NUM_THREADS"] = str(threads)
@@ -80,7 +88,7 @@ class Worker:
             env.pop("OMP_NUM_THREADS", None)
         self.label = label
         self.process = subprocess.Popen(
-            [sys.executable, str(Path(__file__).resolve()), WORKER, str(bunny)],
+            [sys.executable, str(Path(__file__).resolve()), WORKER, str(points)],
             stdin=subprocess.PIPE,
             stdout=subprocess.PIPE,
             text=True,
@@ -91,9 +99,9 @@ class Worker:
         if Path(self.core).parent.resolve() != core_parent.resolve():
             raise RuntimeError(f"{label}: imported {self.core}, not the revision's copy in {core_parent}")
 
-    def time(self, scale: float) -> dict[str, float]:
+    def time(self, scale: float, warm: bool) -> dict[str, float]:
         assert self.process.stdin is not None
-        self.process.stdin.write(json.dumps({"scale": scale}) + "\n")
+        self.process.stdin.write(json.dumps({"scale": scale, "warm": warm}) + "\n")
         self.process.stdin.flush()
         return self._read()
 
@@ -162,6 +170,7 @@ def main(argv: list[str] | None = None) -> int:
     from core_speed import BUNNY, SCALES
 
     from frisicp_bench import script
+    from frisicp_core import read_points
 
     quick = "HEAD against the working tree, 2 scales, once"
     parser = script.parser(__file__, __doc__, quick, data=True, report=True, repeats=5)
@@ -170,6 +179,9 @@ def main(argv: list[str] | None = None) -> int:
         "--after", default=WORKTREE, help="git revision to compare (default: the working tree)"
     )
     parser.add_argument("--threads", type=int, default=1, help="OMP_NUM_THREADS of the workers; 0: unset")
+    parser.add_argument(
+        "--warm", action="store_true", help="start 2 deg / 2 %% off the truth (core_speed's warm start)"
+    )
     args = script.parse(parser, argv)
     if args.quick:
         args.before, args.repeats = args.before or "HEAD", 1
@@ -187,10 +199,12 @@ def main(argv: list[str] | None = None) -> int:
             label: extract_core(rev, Path(folder))
             for label, rev in (("before", args.before), ("after", args.after))
         }
-        workers = {label: Worker(label, parent, args.threads, bunny) for label, (parent, _) in cores.items()}
+        points = Path(folder) / "bunny.npy"
+        np.save(points, read_points(bunny))
+        workers = {label: Worker(label, parent, args.threads, points) for label, (parent, _) in cores.items()}
         try:
             for w in workers.values():
-                w.time(scales[0])  # warm-up: imports, first trees
+                w.time(scales[0], args.warm)  # warm-up: imports, first trees
             samples: dict[str, dict[float, list[dict[str, float]]]] = {
                 label: {s: [] for s in scales} for label in workers
             }
@@ -199,7 +213,7 @@ def main(argv: list[str] | None = None) -> int:
                 for k, scale in enumerate(scales):
                     # Alternate who goes first, so neither always follows the other's cache footprint.
                     for label in order if (repeat + k) % 2 == 0 else order[::-1]:
-                        samples[label][scale].append(workers[label].time(scale))
+                        samples[label][scale].append(workers[label].time(scale, args.warm))
                 print(f"repeat {repeat + 1}/{args.repeats} done", flush=True)
         finally:
             for w in workers.values():
@@ -248,6 +262,8 @@ def write_report(
     command = script.command_line(args)
     lines = [
         "# Core speed before and after: `register` on the full-overlap cases of `make bench`, interleaved",
+        "",
+        f"Start: {'warm, 2 deg / 2 % off the truth' if args.warm else 'cold'}.",
         "",
         f"Generated by `{command}` on {date.today().isoformat()} ({platform.machine()}, {os.cpu_count()} CPUs, "
         f"Python {platform.python_version()}, {threads}); medians of {args.repeats} runs per scale, the two "
