@@ -2,13 +2,17 @@
 
 A patch's normal is the eigenvector of its scatter matrix S = sum (p - mean)(p - mean)^T with the
 smallest eigenvalue, which is the patch's squared out-of-plane spread (Hoppe et al. 1992). The
-refinement's normals, the fit check's local planes and the descriptors' normals need this for
-thousands of patches per call, where LAPACK's ``eigh`` on 3 x 3 matrices costs more than
-finding the patches: in 3-D the eigenvalue comes in closed form (Smith 1961, "Eigenvalues of a
+refinement's normals and the fit check's local planes need this for thousands of patches per
+call, where LAPACK's ``eigh`` on 3 x 3 matrices costs more than finding the patches: in 3-D the eigenvalue comes in closed form (Smith 1961, "Eigenvalues of a
 symmetric 3 x 3 matrix") and its eigenvector as the largest cross product of two rows of
 S - lambda I, which are orthogonal to it. Patches whose smallest eigenvalue is (nearly) double
 (a line of points: every direction across it has least variance) have no such pair of rows and
 go to ``eigh``, as does any other dimension.
+
+The descriptors (:mod:`frisicp_core.features`) keep ``eigh``: the global search is a chain of
+discrete choices (bins, matches, random triples), and normals that differ in the 16th digit
+changed a marginal case's answer (test/core/test_scene_crops.py); they stay on the solver the
+search was measured with.
 """
 
 from __future__ import annotations
