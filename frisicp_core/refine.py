@@ -63,31 +63,55 @@ class ModelNormals:
         return values
 
 
-@dataclass(frozen=True)
-class Half:
-    """A random half of a cloud: its rows in the whole cloud, a mask of them, its own tree. (Its
-    pairs take the whole model's normals: the halves' own, fitted to half the points, gave the
-    same calibration on the development scenes at twice the cost.)"""
+# Nearest points of the whole cloud searched for a half's nearest: a random half holds none of
+# them with probability 2^-CANDIDATES (1 in 256: such a pair is left out, at random).
+CANDIDATES = 8
 
-    rows: np.ndarray
-    mask: np.ndarray
-    tree: NearestNeighbors
+
+@dataclass(frozen=True)
+class Candidates:
+    """The :data:`CANDIDATES` nearest points of the other cloud, whole, of every sampled row of
+    both clouds at ``pose`` (forward: data rows mapped onto the model; backward: model rows
+    mapped back onto the data, distances in data units). Every split half paired at ``pose``
+    takes its nearest points from here instead of a tree of its own: the nearest point of a half
+    is the first of a point's nearest in the whole that lies in the half."""
+
+    pose: Similarity
+    forward: tuple[FloatArray, np.ndarray]
+    backward: tuple[FloatArray, np.ndarray]
 
     @classmethod
-    def of(cls, points: FloatArray, mask: np.ndarray) -> Half:
-        rows = np.flatnonzero(mask)
-        return cls(rows, mask, NearestNeighbors(points[rows]))
+    def at(cls, pose: Similarity, data_tree: NearestNeighbors, model_tree: NearestNeighbors) -> Candidates:
+        data, model = data_tree.points, model_tree.points
+        forward = model_tree.query_k(pose.apply(data[_sample(data.shape[0], None)]), CANDIDATES)
+        backward = data_tree.query_k(pose.inverse().apply(model[_sample(model.shape[0], None)]), CANDIDATES)
+        return cls(pose, forward, backward)
 
-    def nearest(self, queries: FloatArray) -> tuple[FloatArray, np.ndarray]:
-        """Nearest point of the half: squared distances, rows in the whole cloud."""
-        dist_sq, index = self.tree.query(queries)
-        return dist_sq, self.rows[index]
+
+@dataclass(frozen=True)
+class Half:
+    """A random half of a cloud: a mask of its rows. (Its pairs take the whole model's normals:
+    the halves' own, fitted to half the points, gave the same calibration on the development
+    scenes at twice the cost.)"""
+
+    mask: np.ndarray
+
+    def nearest(self, candidates: tuple[FloatArray, np.ndarray]) -> tuple[FloatArray, np.ndarray, np.ndarray]:
+        """Each candidate row's first (nearest) candidate in the half: squared distances, rows in
+        the whole cloud, and which candidate rows have one."""
+        dist_sq, index = candidates
+        inside = self.mask[index]
+        found = inside.any(axis=1)
+        first = np.argmax(inside, axis=1)
+        rows = np.arange(index.shape[0])
+        return dist_sq[rows, first][found], index[rows, first][found], found
 
 
 @dataclass(frozen=True)
 class Sets:
     """The two clouds as the refinement sees them: their trees, spacings and the model's normals,
-    and the trimming options. ``data_half``/``model_half`` restrict the pairs to half-samples."""
+    and the trimming options. ``data_half``/``model_half`` restrict the pairs to half-samples,
+    paired through ``candidates`` (found at the pose they are paired at)."""
 
     data_tree: NearestNeighbors
     model_tree: NearestNeighbors
@@ -98,6 +122,7 @@ class Sets:
     max_distance: float | None = None  # RegistrationConfig.max_distance
     data_half: Half | None = None
     model_half: Half | None = None
+    candidates: Candidates | None = None
 
 
 @dataclass(frozen=True)
@@ -147,36 +172,55 @@ def _sample(count: int, half: Half | None) -> np.ndarray:
     return rows if half is None else rows[half.mask[rows]]
 
 
+def _half_candidates(
+    candidates: tuple[FloatArray, np.ndarray], count: int, half: Half
+) -> tuple[FloatArray, np.ndarray]:
+    """The rows of ``candidates`` (one per sampled row of a cloud of ``count``) in ``half``."""
+    chosen = half.mask[_sample(count, None)]
+    return candidates[0][chosen], candidates[1][chosen]
+
+
+def _kept(dist_sq: FloatArray, spacing: float, sets: Sets) -> np.ndarray:
+    """Which pairs of one direction the trimming keeps (none of none: a half whose points were
+    all thrown past float64 by a wild pose has no candidates in it)."""
+    if dist_sq.size == 0:
+        return np.zeros(0, dtype=bool)
+    keep: np.ndarray = select_pairs(
+        dist_sq[None], np.array([spacing**2]), sets.overlap, sets.max_distance
+    ).keep[0]
+    return keep
+
+
 def plane_pairs(sim: Similarity, sets: Sets, bidirectional: bool = True) -> PlanePairs:
     """The kept pairs of ``sim`` in both directions (sampled, see the module doc)."""
     data, model = sets.data_tree.points, sets.model_tree.points
-    rows = _sample(data.shape[0], sets.data_half)
-    mapped = sim.apply(data[rows])
-    model_half = sets.model_half
-    if model_half is None:
+    data_half, model_half, candidates = sets.data_half, sets.model_half, sets.candidates
+    halves = data_half is not None and model_half is not None
+    if halves and (candidates is None or candidates.pose is not sim):
+        raise ValueError("split halves are paired at the pose their candidates were found for")
+    rows = _sample(data.shape[0], data_half)
+    if data_half is None or model_half is None or candidates is None:
+        mapped = sim.apply(data[rows])
         forward_sq, forward_index = sets.model_tree.query(mapped)
     else:
-        forward_sq, forward_index = model_half.nearest(mapped)
-    keep = select_pairs(
-        forward_sq[None], np.array([sets.model_spacing**2]), sets.overlap, sets.max_distance
-    ).keep[0]
+        forward = _half_candidates(candidates.forward, data.shape[0], data_half)
+        forward_sq, forward_index, found = model_half.nearest(forward)
+        rows = rows[found]
+        mapped = sim.apply(data[rows])
+    keep = _kept(forward_sq, sets.model_spacing, sets)
     sources, targets = [mapped[keep]], [forward_index[keep]]
     forward_kept = forward_sq[keep]
     backward_kept, columns = np.zeros(0), np.zeros(0, dtype=np.int64)
     if bidirectional:
         columns = _sample(model.shape[0], model_half)
-        queries = sim.inverse().apply(model[columns])
-        if sets.data_half is None:
-            backward_sq, backward_index = sets.data_tree.query(queries)
+        if data_half is None or model_half is None or candidates is None:
+            backward_sq, backward_index = sets.data_tree.query(sim.inverse().apply(model[columns]))
         else:
-            backward_sq, backward_index = sets.data_half.nearest(queries)
+            backward = _half_candidates(candidates.backward, model.shape[0], model_half)
+            backward_sq, backward_index, found = data_half.nearest(backward)
+            columns = columns[found]
         backward_sq = backward_sq * sim.scale**2
-        keep_back = select_pairs(
-            backward_sq[None],
-            np.array([(sets.data_spacing * sim.scale) ** 2]),
-            sets.overlap,
-            sets.max_distance,
-        ).keep[0]
+        keep_back = _kept(backward_sq, sets.data_spacing * sim.scale, sets)
         sources.append(sim.apply(data[backward_index[keep_back]]))
         targets.append(columns[keep_back])
         backward_kept = backward_sq[keep_back]
@@ -309,12 +353,16 @@ def difference(a: Similarity, b: Similarity, centroid: FloatArray) -> FloatArray
 
 
 def half_samples(
-    sets: Sets, rng: np.random.Generator, coincident: tuple[np.ndarray, np.ndarray] | None = None
+    sets: Sets,
+    rng: np.random.Generator,
+    candidates: Candidates,
+    coincident: tuple[np.ndarray, np.ndarray] | None = None,
 ) -> tuple[Sets, Sets]:
-    """Two disjoint random halves of both clouds, each with its own trees. ``coincident`` =
-    (data rows, model rows) of points that coincide under the estimate (the two clouds share
-    those samples, as a copy does): such a pair goes to the same half, since independent halves
-    of a shared sampling would be two different samplings, which the clouds are not."""
+    """Two disjoint random halves of both clouds, paired through ``candidates`` (so only at
+    their pose). ``coincident`` = (data rows, model rows) of points that coincide under the
+    estimate (the two clouds share those samples, as a copy does): such a pair goes to the same
+    half, since independent halves of a shared sampling would be two different samplings, which
+    the clouds are not."""
     data, model = sets.data_tree.points, sets.model_tree.points
     data_half = np.less(rng.random(data.shape[0]), 0.5)
     model_half = np.less(rng.random(model.shape[0]), 0.5)
@@ -328,8 +376,9 @@ def half_samples(
                 sets,
                 data_spacing=sets.data_spacing * np.sqrt(2.0),
                 model_spacing=sets.model_spacing * np.sqrt(2.0),
-                data_half=Half.of(data, data_mask),
-                model_half=Half.of(model, model_mask),
+                data_half=Half(data_mask),
+                model_half=Half(model_mask),
+                candidates=candidates,
             )
         )
     return halves[0], halves[1]
@@ -389,7 +438,9 @@ def uncertainty_of(
     calibrated Gaussian gives 2.5-2.8 (worst axis against the norm of the error);
     :data:`WIDENING` = 2.25 brings every component's share within three sigmas to 0.98 there.
 
-    The splits cost six refinements of half the pairs. A tracked sensor sees the same scene with
+    The splits cost six Gauss-Newton steps on half the pairs, all paired from one query of the
+    sampled points' nearest neighbours (:class:`Candidates`; a tree per half cost more than the
+    steps). A tracked sensor sees the same scene with
     the same noise from one pair to the next, so a ``widening`` measured on the track (the
     previous result's, per parameter) is applied to this pair's sandwich instead.
     """
@@ -402,8 +453,9 @@ def uncertainty_of(
     blocks = [slice(0, 1), slice(1, 1 + r), slice(1 + r, 1 + r + dim)]
     spreads = np.zeros(len(blocks))
     coincident = coincident_points(sim, sets)
+    candidates = Candidates.at(sim, sets.data_tree, sets.model_tree)
     for _ in range(SPLITS):
-        first, second = half_samples(sets, rng, coincident)
+        first, second = half_samples(sets, rng, candidates, coincident)
         delta = difference(
             polish(sim, first, centroid, steps=1, final_pass=False).similarity,
             polish(sim, second, centroid, steps=1, final_pass=False).similarity,
