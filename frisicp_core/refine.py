@@ -384,19 +384,27 @@ def half_samples(
     return halves[0], halves[1]
 
 
-def coincident_points(sim: Similarity, sets: Sets) -> tuple[np.ndarray, np.ndarray] | None:
-    """The (data rows, model rows) of data points that land on a model point (within a
-    hundredth of the model's spacing), or None when fewer than a tenth do: independent
-    samplings of a surface share no points, a copy shares all of them."""
-    data = sets.data_tree.points
-    rows = np.arange(0, data.shape[0], max(1, data.shape[0] // 256))
-    dist_sq, _ = sets.model_tree.query(sim.apply(data[rows]))
+def coincident_points(
+    sim: Similarity, sets: Sets, candidates: Candidates
+) -> tuple[np.ndarray, np.ndarray] | None:
+    """The (data rows, model rows) of the sampled points that land on a point of the other
+    cloud (within a hundredth of the model's spacing) at ``candidates``' pose, or None when
+    fewer than a tenth of the sampled data rows do: independent samplings of a surface share no
+    points, a copy shares all of them. Only the sampled rows are ever paired, so only they and
+    their partners need to share a half."""
     limit = (_COINCIDENT * sets.model_spacing) ** 2
-    if np.count_nonzero(dist_sq <= limit) < 0.1 * rows.size:
+    forward_sq, forward_index = candidates.forward[0][:, 0], candidates.forward[1][:, 0]
+    close = forward_sq <= limit
+    if np.count_nonzero(close) < 0.1 * close.size:
         return None
-    dist_sq, index = sets.model_tree.query(sim.apply(data))
-    close = dist_sq <= limit
-    return np.flatnonzero(close), index[close]
+    backward_sq, backward_index = candidates.backward[0][:, 0], candidates.backward[1][:, 0]
+    back = backward_sq * sim.scale**2 <= limit
+    data_rows = _sample(sets.data_tree.points.shape[0], None)
+    model_rows = _sample(sets.model_tree.points.shape[0], None)
+    return (
+        np.concatenate([data_rows[close], backward_index[back]]),
+        np.concatenate([forward_index[close], model_rows[back]]),
+    )
 
 
 # Points closer than this share of the model's spacing are one sample (see coincident_points).
@@ -452,8 +460,8 @@ def uncertainty_of(
     r = vector_size(dim)
     blocks = [slice(0, 1), slice(1, 1 + r), slice(1 + r, 1 + r + dim)]
     spreads = np.zeros(len(blocks))
-    coincident = coincident_points(sim, sets)
     candidates = Candidates.at(sim, sets.data_tree, sets.model_tree)
+    coincident = coincident_points(sim, sets, candidates)
     for _ in range(SPLITS):
         first, second = half_samples(sets, rng, candidates, coincident)
         delta = difference(
