@@ -448,9 +448,9 @@ def uncertainty_of(
 
     The splits cost six Gauss-Newton steps on half the pairs, all paired from one query of the
     sampled points' nearest neighbours (:class:`Candidates`; a tree per half cost more than the
-    steps). A tracked sensor sees the same scene with
-    the same noise from one pair to the next, so a ``widening`` measured on the track (the
-    previous result's, per parameter) is applied to this pair's sandwich instead.
+    steps). A tracked sensor sees the same scene with the same noise from one pair to the next,
+    so a ``widening`` measured on the track (the previous result's, per parameter) is applied to
+    this pair's sandwich instead.
     """
     centre = sim.apply(centroid)
     sandwich = estimate_uncertainty(pairs.mapped, pairs.targets, pairs.normals, centre, rng)
