@@ -30,7 +30,7 @@ import tempfile
 from datetime import date
 from pathlib import Path
 
-from speed_ab import WORKTREE, Worker, extract_core
+from speed_ab import WORKTREE, Worker, extract_core, points_file
 
 from frisicp_bench import script
 
@@ -59,12 +59,12 @@ def main(argv: list[str] | None = None) -> int:
         return script.skip(args, f"no data: {bunny} is absent")
     with tempfile.TemporaryDirectory() as folder:
         core, which = extract_core(args.revision, Path(folder))
-        return measure(args, bunny, core, which)
+        return measure(args, points_file(bunny, Path(folder)), core, which)
 
 
-def measure(args, bunny: Path, core: Path, which: str) -> int:
+def measure(args, points: Path, core: Path, which: str) -> int:
     scales, rounds = (script.SMOKE_SCALES, 1) if args.quick else (SCALES, args.rounds)
-    workers = {"default": Worker("default", core, 0, bunny), "pinned": Worker("pinned", core, 1, bunny)}
+    workers = {"default": Worker("default", core, 0, points), "pinned": Worker("pinned", core, 1, points)}
     busy = [multiprocessing.Process(target=spin, daemon=True) for _ in range(0 if args.quick else args.busy)]
     for process in busy:
         process.start()

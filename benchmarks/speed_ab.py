@@ -99,7 +99,7 @@ class Worker:
         if Path(self.core).parent.resolve() != core_parent.resolve():
             raise RuntimeError(f"{label}: imported {self.core}, not the revision's copy in {core_parent}")
 
-    def time(self, scale: float, warm: bool) -> dict[str, float]:
+    def time(self, scale: float, warm: bool = False) -> dict[str, float]:
         assert self.process.stdin is not None
         self.process.stdin.write(json.dumps({"scale": scale, "warm": warm}) + "\n")
         self.process.stdin.flush()
@@ -116,6 +116,15 @@ class Worker:
         assert self.process.stdin is not None
         self.process.stdin.close()
         self.process.wait()
+
+
+def points_file(cloud: Path, folder: Path) -> Path:
+    """``cloud`` read by today's core into a .npy file in ``folder``, for the workers."""
+    from frisicp_core import read_points
+
+    path = folder / f"{cloud.stem}.npy"
+    np.save(path, read_points(cloud))
+    return path
 
 
 def extract_core(revision: str, into: Path) -> tuple[Path, str]:
@@ -170,7 +179,6 @@ def main(argv: list[str] | None = None) -> int:
     from core_speed import BUNNY, SCALES
 
     from frisicp_bench import script
-    from frisicp_core import read_points
 
     quick = "HEAD against the working tree, 2 scales, once"
     parser = script.parser(__file__, __doc__, quick, data=True, report=True, repeats=5)
@@ -199,8 +207,7 @@ def main(argv: list[str] | None = None) -> int:
             label: extract_core(rev, Path(folder))
             for label, rev in (("before", args.before), ("after", args.after))
         }
-        points = Path(folder) / "bunny.npy"
-        np.save(points, read_points(bunny))
+        points = points_file(bunny, Path(folder))
         workers = {label: Worker(label, parent, args.threads, points) for label, (parent, _) in cores.items()}
         try:
             for w in workers.values():
