@@ -23,7 +23,13 @@ from frisicp_core import downsample, register
 def test_a_ten_percent_crop_of_the_dragon_at_a_tenth_of_its_size_is_found_where_it_belongs():
     """benchmarks/trustworthy.py's case "dragon1.xyz 10% s=0.1" (both clouds capped at 10,000
     points): with the merit alone the answer was turned 177 degrees and 2.4 times too large, refused;
-    the crop's true place fits with 2-3 % near misses and is found, right and reliable."""
+    the crop's true place fits with 2-3 % near misses and is found, right and reliable.
+
+    Whether a probe also turns up a rival within the ambiguity margin here hangs on the last
+    digits: with the descriptors' normals changed in the 16th digit (another eigen solver) a
+    rival at a merit ratio of 1.044 appeared (the margin is 1.05) and the right answer was
+    refused as ambiguous. So the test asks for the right pose, reliable or refused for such a
+    rival, never for a misfit; a different BLAS/LAPACK build must not flip it."""
     shared_file("real/dragon1.xyz")
     rng = np.random.default_rng(zlib.crc32(b"crop onto scene/dragon1.xyz/1/10000"))
     scene = scenes.object_cloud(SHARED_DATA, "dragon1.xyz")
@@ -35,4 +41,4 @@ def test_a_ten_percent_crop_of_the_dragon_at_a_tenth_of_its_size_is_found_where_
     assert case.truth is not None
     errors = pose_errors(result.similarity, case.truth, data, case.model_diagonal)
     assert errors.rotation_deg < 1.0 and errors.scale < 0.01 and errors.translation < 0.005
-    assert result.reliable, result.reason
+    assert result.reliable or result.reason.startswith("ambiguous:"), result.reason
