@@ -74,18 +74,22 @@ class Candidates:
     both clouds at ``pose`` (forward: data rows mapped onto the model; backward: model rows
     mapped back onto the data, distances in data units). Every split half paired at ``pose``
     takes its nearest points from here instead of a tree of its own: the nearest point of a half
-    is the first of a point's nearest in the whole that lies in the half."""
+    is the first of a point's nearest in the whole that lies in the half. ``data_rows`` and
+    ``model_rows`` are the sampled rows, in the tables' order."""
 
     pose: Similarity
+    data_rows: np.ndarray
+    model_rows: np.ndarray
     forward: tuple[FloatArray, np.ndarray]
     backward: tuple[FloatArray, np.ndarray]
 
     @classmethod
     def at(cls, pose: Similarity, data_tree: NearestNeighbors, model_tree: NearestNeighbors) -> Candidates:
         data, model = data_tree.points, model_tree.points
-        forward = model_tree.query_k(pose.apply(data[_sample(data.shape[0], None)]), CANDIDATES)
-        backward = data_tree.query_k(pose.inverse().apply(model[_sample(model.shape[0], None)]), CANDIDATES)
-        return cls(pose, forward, backward)
+        data_rows, model_rows = _sample(data.shape[0]), _sample(model.shape[0])
+        forward = model_tree.query_k(pose.apply(data[data_rows]), CANDIDATES)
+        backward = data_tree.query_k(pose.inverse().apply(model[model_rows]), CANDIDATES)
+        return cls(pose, data_rows, model_rows, forward, backward)
 
 
 @dataclass(frozen=True)
@@ -165,19 +169,22 @@ class PlanePairs:
         )
 
 
-def _sample(count: int, half: Half | None) -> np.ndarray:
-    """Every k-th row of the whole cloud (those in ``half``): a half-sample keeps half of the
-    whole's pairs, so its estimate has twice the whole's variance (and its normals are known)."""
-    rows = np.arange(0, count, max(1, -(-count // MAX_PAIRS)))
-    return rows if half is None else rows[half.mask[rows]]
+def _sample(count: int) -> np.ndarray:
+    """Every k-th row of a cloud of ``count`` points (at most :data:`MAX_PAIRS`). A half-sample
+    keeps those in its half: half of the whole's pairs, so its estimate has twice the whole's
+    variance (and its normals are known)."""
+    return np.arange(0, count, max(1, -(-count // MAX_PAIRS)))
 
 
-def _half_candidates(
-    candidates: tuple[FloatArray, np.ndarray], count: int, half: Half
-) -> tuple[FloatArray, np.ndarray]:
-    """The rows of ``candidates`` (one per sampled row of a cloud of ``count``) in ``half``."""
-    chosen = half.mask[_sample(count, None)]
-    return candidates[0][chosen], candidates[1][chosen]
+def _half_pairs(
+    rows: np.ndarray, candidates: tuple[FloatArray, np.ndarray], own: Half, other: Half
+) -> tuple[np.ndarray, FloatArray, np.ndarray]:
+    """One direction's pairs between two halves: the sampled ``rows`` of a cloud that lie in
+    ``own``, each with its first candidate (``candidates``, one row per sampled row) in ``other``
+    (rows without one left out): (rows, squared distances, partners' rows)."""
+    chosen = own.mask[rows]
+    dist_sq, partners, found = other.nearest((candidates[0][chosen], candidates[1][chosen]))
+    return rows[chosen][found], dist_sq, partners
 
 
 def _kept(dist_sq: FloatArray, spacing: float, sets: Sets) -> np.ndarray:
@@ -195,30 +202,27 @@ def plane_pairs(sim: Similarity, sets: Sets, bidirectional: bool = True) -> Plan
     """The kept pairs of ``sim`` in both directions (sampled, see the module doc)."""
     data, model = sets.data_tree.points, sets.model_tree.points
     data_half, model_half, candidates = sets.data_half, sets.model_half, sets.candidates
-    halves = data_half is not None and model_half is not None
-    if halves and (candidates is None or candidates.pose is not sim):
+    split = None if data_half is None or model_half is None else (data_half, model_half)
+    if split is not None and (candidates is None or candidates.pose is not sim):
         raise ValueError("split halves are paired at the pose their candidates were found for")
-    rows = _sample(data.shape[0], data_half)
-    if data_half is None or model_half is None or candidates is None:
-        mapped = sim.apply(data[rows])
+    if split is None or candidates is None:
+        mapped = sim.apply(data[_sample(data.shape[0])])
         forward_sq, forward_index = sets.model_tree.query(mapped)
     else:
-        forward = _half_candidates(candidates.forward, data.shape[0], data_half)
-        forward_sq, forward_index, found = model_half.nearest(forward)
-        rows = rows[found]
+        rows, forward_sq, forward_index = _half_pairs(candidates.data_rows, candidates.forward, *split)
         mapped = sim.apply(data[rows])
     keep = _kept(forward_sq, sets.model_spacing, sets)
     sources, targets = [mapped[keep]], [forward_index[keep]]
     forward_kept = forward_sq[keep]
     backward_kept, columns = np.zeros(0), np.zeros(0, dtype=np.int64)
     if bidirectional:
-        columns = _sample(model.shape[0], model_half)
-        if data_half is None or model_half is None or candidates is None:
+        if split is None or candidates is None:
+            columns = _sample(model.shape[0])
             backward_sq, backward_index = sets.data_tree.query(sim.inverse().apply(model[columns]))
         else:
-            backward = _half_candidates(candidates.backward, model.shape[0], model_half)
-            backward_sq, backward_index, found = data_half.nearest(backward)
-            columns = columns[found]
+            columns, backward_sq, backward_index = _half_pairs(
+                candidates.model_rows, candidates.backward, split[1], split[0]
+            )
         backward_sq = backward_sq * sim.scale**2
         keep_back = _kept(backward_sq, sets.data_spacing * sim.scale, sets)
         sources.append(sim.apply(data[backward_index[keep_back]]))
@@ -399,11 +403,9 @@ def coincident_points(
         return None
     backward_sq, backward_index = candidates.backward[0][:, 0], candidates.backward[1][:, 0]
     back = backward_sq * sim.scale**2 <= limit
-    data_rows = _sample(sets.data_tree.points.shape[0], None)
-    model_rows = _sample(sets.model_tree.points.shape[0], None)
     return (
-        np.concatenate([data_rows[close], backward_index[back]]),
-        np.concatenate([forward_index[close], model_rows[back]]),
+        np.concatenate([candidates.data_rows[close], backward_index[back]]),
+        np.concatenate([forward_index[close], candidates.model_rows[back]]),
     )
 
 

@@ -469,8 +469,8 @@ class _Refiner:
         self, starts: list[Similarity], returned: Callable[[Similarity], bool]
     ) -> tuple[PoseBatch, FloatArray]:
         """Every start settled on the thinned screening level (batched, accelerated ICP steps):
-        cheap, and good enough to nominate candidates for :meth:`down`. A start that has ``returned`` (to
-        the answer) is settled: its basin is the answer's."""
+        cheap, and good enough to nominate candidates for :meth:`down`. A start that has
+        ``returned`` (to the answer) is settled: its basin is the answer's."""
         tolerance = self.config.criteria.coarse_relative_motion * self.solver.model_radius
         level = self.levels.screening_level()
         return self.solver.settle(level, PoseBatch.of(starts), tolerance, _PROBE_PASSES, returned)

@@ -10,7 +10,6 @@ from frisicp_core.refine import (
     Half,
     ModelNormals,
     Sets,
-    _sample,
     coincident_points,
     half_samples,
 )
@@ -27,7 +26,7 @@ def test_a_halfs_partner_from_the_candidates_is_its_nearest_point_in_the_half() 
 
     dist_sq, partner, found = Half(mask).nearest(candidates.forward)
 
-    queries = pose.apply(data[_sample(data.shape[0], None)])
+    queries = pose.apply(data[candidates.data_rows])
     exact_sq, exact = NearestNeighbors(model[rows]).query(queries[found])
     assert np.array_equal(partner, rows[exact])
     assert np.allclose(dist_sq, exact_sq)
@@ -53,7 +52,7 @@ def test_a_copys_sampled_points_share_their_half_with_the_point_they_land_on() -
     data_rows, model_rows = tied
     assert np.allclose(pose.apply(sets.data_tree.points[data_rows]), model[model_rows])
     # Every sampled row of either cloud is tied to its copy.
-    assert set(_sample(8000, None)) <= set(data_rows) and set(_sample(8000, None)) <= set(model_rows)
+    assert set(candidates.data_rows) <= set(data_rows) and set(candidates.model_rows) <= set(model_rows)
     first, _ = half_samples(sets, rng, candidates, tied)
     assert first.data_half is not None and first.model_half is not None
     assert np.array_equal(first.data_half.mask[data_rows], first.model_half.mask[model_rows])
