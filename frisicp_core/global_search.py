@@ -20,6 +20,11 @@ does not tell, and turned any way. This stage finds such poses from local shape:
 The best poses of every rung are ranked together by how much of the two clouds they make
 coincide (:func:`_coverage`), and the best few are returned as starting poses; ICP takes them
 from there and the usual comparison on the first dense level decides.
+
+The search is not symmetric: every keypoint of a crop has its counterpart in the scene, few of a
+scene's have one in its crop. When the answer from the data's keypoints does not fit,
+:func:`frisicp_core.registration.register` searches again with the clouds' roles swapped and
+inverts the poses.
 """
 
 from __future__ import annotations

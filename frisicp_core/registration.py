@@ -69,6 +69,8 @@ _PROBE_PASSES = 20
 _NOMINATE = 0.15
 # Clouds whose estimated overlaps are both at least this cover each other (see _register).
 _COMPLETE = 0.9
+# The random stream of the global search with the clouds' roles swapped (see _register).
+_SWAPPED_STREAM = 1
 # Most probes refined down the levels to be compared with the answer on the full sets.
 _PROBE_REFINED = 3
 
@@ -309,6 +311,31 @@ def _register(
                     near_share=near_share,
                 )
                 reports = [report]
+            if (
+                near_share is not None
+                and not near_share(sim) <= MAX_NEAR_SHARE
+                and not solver.deadline.passed()
+            ):
+                # The search matches the data's local shapes onto the model's: it finds a crop
+                # in its scene (each of the crop's keypoints has a counterpart there), hardly a
+                # scene in its crop (most of the scene's have none). When its answer does not
+                # fit, the same search the other way, the model's shapes onto the data's, has
+                # its say; its poses, inverted, join. Its own generator leaves every later draw
+                # as it was, so an answer that fits is the one it always was.
+                swapped = feature_starts(
+                    model_set,
+                    PreparedModel.of(data_set),
+                    np.random.default_rng([config.seed, _SWAPPED_STREAM]),
+                )
+                if swapped:
+                    (sim, report, pairs), runners_up = compare_finalists(
+                        solver,
+                        levels[0],
+                        [sim, *runners_up, *(pose.inverse() for pose in swapped)],
+                        level_motion(config, 0, last),
+                        near_share=near_share,
+                    )
+                    reports = [report]
     # The full sets are solved by point-to-plane steps (frisicp_core.refine) when polishing; ICP
     # runs the levels above them (all of them when the sets are small enough for one level).
     polishing = bidirectional and config.polish
