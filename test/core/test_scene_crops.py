@@ -19,6 +19,23 @@ from frisicp_bench.metrics import pose_errors
 from frisicp_core import downsample, register
 
 
+def assert_found(suite: str, index: int, share: float, scale: float, reverse: bool = False) -> None:
+    """benchmarks/trustworthy.py's dragon case ``suite``/``index`` (both clouds capped at 10,000
+    points, its seed) is registered right, and reliable or refused only for a rival within the
+    ambiguity margin."""
+    shared_file("real/dragon1.xyz")
+    rng = np.random.default_rng(zlib.crc32(f"{suite}/dragon1.xyz/{index}/10000".encode()))
+    scene = scenes.object_cloud(SHARED_DATA, "dragon1.xyz")
+    assert float(rng.choice(PAPER_SCALES)) == scale
+    case = scenes.crop_case(scene, "dragon1.xyz", share, scale, rng, reverse=reverse)
+    data, model = downsample(case.data, 10_000, rng), downsample(case.model, 10_000, rng)
+    result = register(data, model)
+    assert case.truth is not None
+    errors = pose_errors(result.similarity, case.truth, data, case.model_diagonal)
+    assert errors.rotation_deg < 1.0 and errors.scale < 0.01 and errors.translation < 0.005
+    assert result.reliable or result.reason.startswith("ambiguous:"), result.reason
+
+
 @pytest.mark.real_data
 def test_a_ten_percent_crop_of_the_dragon_at_a_tenth_of_its_size_is_found_where_it_belongs():
     """benchmarks/trustworthy.py's case "dragon1.xyz 10% s=0.1" (both clouds capped at 10,000
@@ -30,18 +47,7 @@ def test_a_ten_percent_crop_of_the_dragon_at_a_tenth_of_its_size_is_found_where_
     rival at a merit ratio of 1.044 appeared (the margin is 1.05) and the right answer was
     refused as ambiguous. So the test asks for the right pose, reliable or refused for such a
     rival, never for a misfit; a different BLAS/LAPACK build must not flip it."""
-    shared_file("real/dragon1.xyz")
-    rng = np.random.default_rng(zlib.crc32(b"crop onto scene/dragon1.xyz/1/10000"))
-    scene = scenes.object_cloud(SHARED_DATA, "dragon1.xyz")
-    scale = float(rng.choice(PAPER_SCALES))
-    assert scale == 0.1
-    case = scenes.crop_case(scene, "dragon1.xyz", 0.1, scale, rng)
-    data, model = downsample(case.data, 10_000, rng), downsample(case.model, 10_000, rng)
-    result = register(data, model)
-    assert case.truth is not None
-    errors = pose_errors(result.similarity, case.truth, data, case.model_diagonal)
-    assert errors.rotation_deg < 1.0 and errors.scale < 0.01 and errors.translation < 0.005
-    assert result.reliable or result.reason.startswith("ambiguous:"), result.reason
+    assert_found("crop onto scene", 1, 0.1, 0.1)
 
 
 @pytest.mark.real_data
@@ -53,15 +59,4 @@ def test_the_whole_dragon_is_found_in_a_third_of_it():
     wrong (the answer 73 degrees off, refused). The same search the other way, the crop's shapes
     onto the dragon's, finds the crop's place, so the answer is right (reliable, or refused only
     for a rival within the ambiguity margin, as above)."""
-    shared_file("real/dragon1.xyz")
-    rng = np.random.default_rng(zlib.crc32(b"scene onto crop/dragon1.xyz/1/10000"))
-    scene = scenes.object_cloud(SHARED_DATA, "dragon1.xyz")
-    scale = float(rng.choice(PAPER_SCALES))
-    assert scale == 2.1
-    case = scenes.crop_case(scene, "dragon1.xyz", 0.3, scale, rng, reverse=True)
-    data, model = downsample(case.data, 10_000, rng), downsample(case.model, 10_000, rng)
-    result = register(data, model)
-    assert case.truth is not None
-    errors = pose_errors(result.similarity, case.truth, data, case.model_diagonal)
-    assert errors.rotation_deg < 1.0 and errors.scale < 0.01 and errors.translation < 0.005
-    assert result.reliable or result.reason.startswith("ambiguous:"), result.reason
+    assert_found("scene onto crop", 1, 0.3, 2.1, reverse=True)
