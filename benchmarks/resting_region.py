@@ -33,23 +33,22 @@ import os
 
 os.environ["OMP_NUM_THREADS"] = "1"  # before numpy and pykdtree load
 
+import functools
 import statistics
 import sys
 import time
-from collections.abc import Callable
 from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from trustworthy import Spec, build, capped, specs
+from trustworthy import Spec, build, capped, specs, within_3_sigma
 
 from frisicp_bench import script
 from frisicp_bench.datasets import DataMissingError
 from frisicp_bench.metrics import pose_errors
 from frisicp_bench.report import write_report
-from frisicp_core import RegistrationConfig, register
+from frisicp_core import RegistrationConfig, RegistrationResult, register
 from frisicp_core.refine import difference, perturb
 
 TITLE = "Where warm starts 3 sigmas off a reliable answer come to rest"
@@ -59,9 +58,10 @@ AXES = 3
 NOT_PULLED_BACK = 1.5
 
 
-def rests(data: np.ndarray, model: np.ndarray, result: Any) -> list[float]:
+def rests(data: np.ndarray, model: np.ndarray, result: RegistrationResult) -> list[float]:
     """Mahalanobis distances from ``result`` (a reliable answer) at which warm starts
     :data:`START_SIGMAS` along the longest :data:`AXES` axes of its covariance, both ways, end."""
+    assert result.uncertainty is not None
     covariance = result.uncertainty.covariance
     centroid = data.mean(axis=0)
     centre = result.similarity.apply(centroid)
@@ -94,15 +94,9 @@ def score(spec: Spec, data_dir: Path) -> dict[str, Any]:
     if not result.reliable or case.truth is None or result.uncertainty is None:
         return entry
     errors = pose_errors(result.similarity, case.truth, data, case.model_diagonal)
-    sigma = result.uncertainty
-    log_scale = abs(float(np.log(result.similarity.scale / case.truth.scale)))
     entry.update(
         right=errors.success,
-        within_3_sigma=[
-            bool(errors.rotation_deg <= 3.0 * sigma.rotation_deg),
-            bool(log_scale <= 3.0 * sigma.scale),
-            bool(errors.translation * case.model_diagonal <= 3.0 * sigma.translation),
-        ],
+        within_3_sigma=within_3_sigma(result, case.truth, errors, case.model_diagonal),
         rests=[round(value, 2) for value in rests(data, model, result)],
         seconds=round(time.perf_counter() - started, 2),
     )
@@ -146,16 +140,6 @@ def summarise(records: list[dict[str, Any]]) -> tuple[list[str], list[list[objec
     return header, rows
 
 
-@dataclass(frozen=True)
-class _Scorer:
-    """Picklable ``score`` bound to the data folder (for the process pool)."""
-
-    data_dir: Path
-
-    def __call__(self, spec: Spec) -> dict[str, Any]:
-        return score(spec, self.data_dir)
-
-
 def main(argv: list[str] | None = None) -> int:
     command = script.parser(__file__, __doc__, "one capped rs1 frames case", data=True, report=True)
     command.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
@@ -165,11 +149,10 @@ def main(argv: list[str] | None = None) -> int:
     todo = [spec for spec in specs(quick=False) if spec.suite in SUITES]
     if args.quick:
         todo = [spec for spec in todo if spec.suite == "frames"][:1]
-    run: Callable[[Spec], dict[str, Any]] = _Scorer(args.data)
     records: list[dict[str, Any]] = []
     try:
         with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-            for entry in pool.map(run, todo):
+            for entry in pool.map(functools.partial(score, data_dir=args.data), todo):
                 records.append(entry)
                 print(entry["case"], entry["cap"], entry.get("rests"), file=sys.stderr, flush=True)
     except DataMissingError as err:

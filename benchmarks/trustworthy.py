@@ -63,7 +63,7 @@ import numpy as np
 from frisicp_bench import scenes, script
 from frisicp_bench.cases import PAPER_SCALES
 from frisicp_bench.datasets import DataMissingError, scan_pose
-from frisicp_bench.metrics import pose_errors
+from frisicp_bench.metrics import PoseErrors, pose_errors
 from frisicp_bench.report import markdown_table, write_report
 from frisicp_core import (
     PreparedModel,
@@ -274,17 +274,25 @@ def record(
         scale_error=errors.scale,
         translation_error=errors.translation,
     )
-    if uncertainty is not None:
-        offset = errors.translation * case.model_diagonal
-        log_scale = abs(float(np.log(result.similarity.scale / truth.scale)))
-        entry["within_3_sigma"] = [
-            bool(errors.rotation_deg <= 3.0 * uncertainty.rotation_deg),
-            bool(log_scale <= 3.0 * uncertainty.scale),
-            bool(offset <= 3.0 * uncertainty.translation),
-        ]
-    else:
-        entry["within_3_sigma"] = None
+    entry["within_3_sigma"] = within_3_sigma(result, truth, errors, case.model_diagonal)
     return entry
+
+
+def within_3_sigma(
+    result: RegistrationResult, truth: Similarity, errors: PoseErrors, diagonal: float
+) -> list[bool] | None:
+    """Whether each error lies within three of the result's own sigmas: the rotation angle
+    against 3 rotation_deg, |log scale| against 3 scale, the centroid's offset (``errors`` are
+    relative to ``diagonal``) against 3 translation. None without an uncertainty."""
+    sigma = result.uncertainty
+    if sigma is None:
+        return None
+    log_scale = abs(float(np.log(result.similarity.scale / truth.scale)))
+    return [
+        bool(errors.rotation_deg <= 3.0 * sigma.rotation_deg),
+        bool(log_scale <= 3.0 * sigma.scale),
+        bool(errors.translation * diagonal <= 3.0 * sigma.translation),
+    ]
 
 
 def share(count: int, total: int) -> str:

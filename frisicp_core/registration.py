@@ -284,9 +284,15 @@ def _register(
         reports, first, accelerate_from = [report], 1, ACCELERATE_FROM_TRACKING
     elif len(finalists) > 1 or (searching and last > 0):
         near_share = (lambda pose: levels[0].fit(pose).best_near_share) if bidirectional else None
-        (sim, report, pairs), runners_up = compare_finalists(
-            solver, levels[0], finalists, level_motion(config, 0, last), near_share=near_share
+        # Every comparison runs its poses on the first dense level, judged by the same fit check.
+        on_first_level = functools.partial(
+            compare_finalists,
+            solver,
+            levels[0],
+            relative_motion=level_motion(config, 0, last),
+            near_share=near_share,
         )
+        (sim, report, pairs), runners_up = on_first_level(finalists)
         reports, first = [report], 1
         if (
             searching
@@ -303,13 +309,7 @@ def _register(
             # screening's early pruning would drop it.
             starts = feature_starts(data_set, model, rng)
             if starts:
-                (sim, report, pairs), runners_up = compare_finalists(
-                    solver,
-                    levels[0],
-                    [sim, *runners_up, *starts],
-                    level_motion(config, 0, last),
-                    near_share=near_share,
-                )
+                (sim, report, pairs), runners_up = on_first_level([sim, *runners_up, *starts])
                 reports = [report]
             if (
                 near_share is not None
@@ -328,13 +328,8 @@ def _register(
                     np.random.default_rng([config.seed, _SWAPPED_STREAM]),
                 )
                 if swapped:
-                    (sim, report, pairs), runners_up = compare_finalists(
-                        solver,
-                        levels[0],
-                        [sim, *runners_up, *(pose.inverse() for pose in swapped)],
-                        level_motion(config, 0, last),
-                        near_share=near_share,
-                    )
+                    inverted = [pose.inverse() for pose in swapped]
+                    (sim, report, pairs), runners_up = on_first_level([sim, *runners_up, *inverted])
                     reports = [report]
     # The full sets are solved by point-to-plane steps (frisicp_core.refine) when polishing; ICP
     # runs the levels above them (all of them when the sets are small enough for one level).
