@@ -649,8 +649,11 @@ class CandidateNeighbors(NearestNeighbors):
         self._tree = self.candidate.build(self.points, self.threads)
         self._spacing = None
 
-    def query(self, queries: np.ndarray) -> QueryResult:
-        return self.candidate.query(self._tree, queries, self.threads)
+    def query(self, queries: np.ndarray, bound: float | None = None) -> QueryResult:
+        d2, idx = self.candidate.query(self._tree, queries, self.threads)
+        if bound is not None:  # the core's contract: inf beyond the bound (answered in full here)
+            d2 = np.where(d2 < bound * bound, d2, np.inf)
+        return d2, idx
 
     def query_k(self, queries: np.ndarray, k: int) -> QueryResult:
         k = min(k, self.points.shape[0])
@@ -774,9 +777,9 @@ class _Timing(NearestNeighbors):
         _Timing.build_s[role] += elapsed
         _Timing.builds += 1
 
-    def query(self, queries: np.ndarray) -> QueryResult:
+    def query(self, queries: np.ndarray, bound: float | None = None) -> QueryResult:
         start = time.process_time()
-        result = super().query(queries)
+        result = super().query(queries, bound)
         _Timing.query_s += time.process_time() - start
         _Timing.queries += 1
         return result

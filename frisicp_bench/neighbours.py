@@ -53,9 +53,9 @@ class _CountingNeighbors(NearestNeighbors):
 
     queried: ClassVar[int] = 0
 
-    def query(self, queries: FloatArray) -> tuple[FloatArray, np.ndarray]:
+    def query(self, queries: FloatArray, bound: float | None = None) -> tuple[FloatArray, np.ndarray]:
         _CountingNeighbors.queried += len(queries)
-        return super().query(queries)
+        return super().query(queries, bound)
 
 
 @contextmanager

@@ -61,6 +61,8 @@ _COVERAGE_SAMPLE = 500
 _MIN_KEYPOINTS = 10
 # Poses scored per batch (the scoring holds batch x matches x m numbers).
 _BATCH = 2000
+# A margin on a necessary condition (_may_agree) for the rounding of the tests it anticipates.
+_ROUNDING_SLACK = 1.01
 
 
 def feature_starts(data: FloatArray, model: PreparedModel, rng: np.random.Generator) -> list[Similarity]:
@@ -125,6 +127,7 @@ def _robust_poses(
         & (keypoint[:, 1] != keypoint[:, 2])
         & (keypoint[:, 0] != keypoint[:, 2])
     ]
+    triples = triples[_may_agree(source, target, triples, rung, data.radius)]
     a, b = source[triples], target[triples]
     sides_a, sides_b = _sides(a), _sides(b)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -160,6 +163,24 @@ def _robust_poses(
         share = np.count_nonzero(np.linalg.norm(pose.apply(source) - target, axis=1) < reach) / count
         out.append((float(share), pose))
     return out
+
+
+def _may_agree(
+    source: FloatArray, target: FloatArray, triples: np.ndarray, rung: float, radius: float
+) -> np.ndarray:
+    """Which triples can pass the tests of :func:`_robust_poses`, judged on one side each: most
+    fail on it, and one side costs a third of three. The tests ask the three side ratios
+    b / a to lie within TRIANGLE_AGREEMENT of each other and their mean within half an octave
+    of ``rung``, so each ratio lies within TRIANGLE_AGREEMENT * sqrt(2) of it; and the data's
+    sides to be longer than ``radius``. A triple outside this (widened by
+    :data:`_ROUNDING_SLACK`) fails the tests; the ones kept are tested in full."""
+    first_a = np.linalg.norm(source[triples[:, 0]] - source[triples[:, 1]], axis=1)
+    first_b = np.linalg.norm(target[triples[:, 0]] - target[triples[:, 1]], axis=1)
+    reach = TRIANGLE_AGREEMENT * 2.0**0.5 * _ROUNDING_SLACK
+    with np.errstate(invalid="ignore", divide="ignore"):
+        ratio = first_b / first_a
+    keep: np.ndarray = (ratio > rung / reach) & (ratio < rung * reach) & (first_a > radius)
+    return keep
 
 
 def _sides(triangles: FloatArray) -> FloatArray:

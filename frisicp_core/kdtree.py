@@ -51,14 +51,19 @@ class NearestNeighbors:
         else:
             self._tree = cKDTree(self.points, leafsize=16, balanced_tree=False, compact_nodes=False)
 
-    def query(self, queries: FloatArray) -> tuple[FloatArray, np.ndarray]:
-        """Nearest stored point of every query row: (squared distances, int64 indices)."""
+    def query(self, queries: FloatArray, bound: float | None = None) -> tuple[FloatArray, np.ndarray]:
+        """Nearest stored point of every query row: (squared distances, int64 indices).
+
+        With ``bound``, a row with no stored point within that distance gets distance inf (and
+        some index): the search gives up on it early, which makes a query far from every stored
+        point cheap."""
         q = np.ascontiguousarray(queries, dtype=np.float64)
+        within = {} if bound is None else {"distance_upper_bound": bound}
         if self.backend == "pykdtree":
-            dist_sq, idx = self._tree.query(q, k=1, sqr_dists=True)
+            dist_sq, idx = self._tree.query(q, k=1, sqr_dists=True, **within)
             dist_sq, idx = np.asarray(dist_sq, dtype=np.float64), idx.astype(np.int64)
         else:
-            dist, idx = self._tree.query(q, k=1, workers=-1)
+            dist, idx = self._tree.query(q, k=1, workers=-1, **within)
             dist_sq, idx = dist * dist, idx.astype(np.int64, copy=False)
         # A query whose squared distance to every stored point overflows float64 (a warm start
         # with scale 1e-200 throws the points 1e200 away) finds no neighbour: both libraries

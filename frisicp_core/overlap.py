@@ -113,6 +113,27 @@ def select_pairs(
     return Selection(keep, kept, sum_sq, merit)
 
 
+def select_within(
+    dist_sq: FloatArray, floor_sq: FloatArray, bound_sq: FloatArray
+) -> tuple[Selection, np.ndarray]:
+    """The automatic selection (``select_pairs`` with ``overlap=None``, no gating) from squared
+    distances known only below ``bound_sq`` (K,): inf where a pair is farther (a bounded
+    nearest-neighbour query). Returns the selection and, per row, whether it is the one the
+    exact distances give.
+
+    Each unknown distance is at least its row's bound, so the bound stands in for it: the
+    sorted distances below the bound are the exact ones, and every partial sum beyond is at
+    most the exact one, so psi there (module doc) is too. When the row's cut-off then lies below
+    the bound (and so does its floor), no exact psi beyond can undercut the minimum found: the
+    kept pairs, their sum and the merit are the exact ones, to the last bit (a pair that is not
+    kept adds 0 either way)."""
+    known = np.where(np.isfinite(dist_sq), dist_sq, bound_sq[:, None])
+    selection = select_pairs(known, floor_sq, None, None)
+    cut = np.max(np.where(selection.keep, known, 0.0), axis=1)
+    exact: np.ndarray = (cut < bound_sq) & (floor_sq < bound_sq)
+    return selection, exact
+
+
 def _trimmed_overlap(dist_sq: FloatArray, floor_sq: FloatArray) -> np.ndarray:
     """TrICP's psi minimisation for each row (module doc): the mask of the kept pairs."""
     rows, n = dist_sq.shape

@@ -11,6 +11,7 @@ ROS's PoseWithCovariance expects for roll, pitch and yaw).
 
 from __future__ import annotations
 
+import inspect
 from functools import cache
 
 import numpy as np
@@ -18,6 +19,14 @@ from scipy.linalg import expm, logm
 from scipy.spatial.transform import Rotation
 
 from .similarity import FloatArray
+
+# scipy >= 1.17 checks every matrix given to Rotation.from_matrix for orthonormality (re-fitting
+# one that is not: |R R^T - I| > 1e-12) at ~50 us a call, most of an accelerated ICP step's
+# bookkeeping on small sets; ``assume_valid`` skips the check. A rotation well inside that bound
+# (the solver's are orthonormal to ~1e-15) is one it takes as it is either way, so the rotation
+# vector is the same to the last bit. Older scipy has no such check, nor the option.
+_ASSUME_VALID = "assume_valid" in inspect.signature(Rotation.from_matrix).parameters
+_ORTHONORMAL = 1e-13
 
 
 def vector_size(dim: int) -> int:
@@ -54,10 +63,25 @@ def log_rotation(rotation: FloatArray) -> FloatArray:
     if dim == 2:
         return np.array([np.arctan2(rotation[1, 0], rotation[0, 0])])
     if dim == 3:
-        vector: FloatArray = Rotation.from_matrix(rotation).as_rotvec()
+        if _ASSUME_VALID and _orthonormal(rotation):
+            vector: FloatArray = Rotation.from_matrix(rotation, assume_valid=True).as_rotvec()
+        else:
+            vector = Rotation.from_matrix(rotation).as_rotvec()
         return vector
     skew: FloatArray = np.real(logm(rotation))
     return skew[np.triu_indices(dim, 1)]
+
+
+def _orthonormal(rotation: FloatArray) -> bool:
+    """True for a 3 x 3 matrix within :data:`_ORTHONORMAL` of orthonormal with determinant > 0."""
+    deviation = np.abs(rotation @ rotation.T - np.eye(3)).max()
+    r = rotation
+    det = (
+        r[0, 0] * (r[1, 1] * r[2, 2] - r[1, 2] * r[2, 1])
+        - r[0, 1] * (r[1, 0] * r[2, 2] - r[1, 2] * r[2, 0])
+        + r[0, 2] * (r[1, 0] * r[2, 1] - r[1, 1] * r[2, 0])
+    )
+    return bool(deviation <= _ORTHONORMAL and det > 0)
 
 
 def exp_rotation(vector: FloatArray, dim: int) -> FloatArray:

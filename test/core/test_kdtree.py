@@ -58,6 +58,23 @@ def test_exact_against_ckdtree(backend, dim):
 
 
 @pytest.mark.parametrize("backend", CONCRETE)
+def test_a_bounded_query_answers_within_the_bound_and_gives_up_beyond(backend):
+    backend_or_skip(backend)
+    rng = np.random.default_rng(7)
+    points = rng.uniform(0.0, 1.0, size=(2000, 3))
+    queries = rng.uniform(-0.5, 1.5, size=(3000, 3))
+    tree = NearestNeighbors(points, backend)
+    exact_sq, exact_idx = tree.query(queries)
+    bounded_sq, bounded_idx = tree.query(queries, bound=0.3)
+    found = np.isfinite(bounded_sq)
+    assert 0.2 < found.mean() < 0.9
+    np.testing.assert_array_equal(found, exact_sq < 0.3**2)
+    np.testing.assert_array_equal(bounded_sq[found], exact_sq[found])
+    np.testing.assert_array_equal(bounded_idx[found], exact_idx[found])
+    assert np.all((bounded_idx >= 0) & (bounded_idx < 2000))  # a valid row even where none is found
+
+
+@pytest.mark.parametrize("backend", CONCRETE)
 def test_degenerate_inputs(backend):
     backend_or_skip(backend)
     rng = np.random.default_rng(0)

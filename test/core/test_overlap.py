@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from frisicp_core.overlap import MIN_FRACTION, select_pairs
+from frisicp_core.overlap import MIN_FRACTION, select_pairs, select_within
 
 
 def residuals(inliers: int, outliers: int, seed: int = 0) -> np.ndarray:
@@ -60,3 +60,20 @@ def test_several_poses_are_selected_independently():
     dist_sq = np.vstack([residuals(300, 700, seed=3), residuals(800, 200, seed=4)])
     selection = select_pairs(dist_sq, np.zeros(2), overlap=None, max_distance=None)
     np.testing.assert_allclose(selection.fraction, [0.3, 0.8], atol=0.03)
+
+
+def test_distances_known_only_below_a_bound_select_exactly_the_same_pairs():
+    """A bounded query leaves the far pairs unknown (inf); where the cut falls below the bound
+    the selection and its merit are those of the full distances, to the last bit, and where
+    it would fall beyond, the row says so."""
+    crop = residuals(300, 700, seed=5)  # 30 % at the noise level, the rest 10-100 times farther
+    spread = np.random.default_rng(6).uniform(0.0, 1.0, (1, 1000)) ** 2  # no knee: a cut far out
+    dist_sq = np.vstack([crop, spread])
+    bound_sq = np.array([0.3**2, 0.3**2])
+    unknown = np.where(dist_sq < bound_sq[:, None], dist_sq, np.inf)
+    full = select_pairs(dist_sq, np.zeros(2), None, None)
+    selection, exact = select_within(unknown, np.zeros(2), bound_sq)
+    assert exact.tolist() == [True, False]
+    np.testing.assert_array_equal(selection.keep[0], full.keep[0])
+    assert selection.merit[0] == full.merit[0] and selection.sum_sq[0] == full.sum_sq[0]
+    assert full.fraction[1] > 0.5  # what the bounded row could not have known

@@ -114,3 +114,20 @@ def test_symmetric_scale_makes_swapping_the_sets_give_the_inverse():
     np.testing.assert_allclose((forward @ backward).matrix(), np.eye(4), atol=1e-9)
     umeyama = estimate_similarity(x, y) @ estimate_similarity(y, x)
     assert abs(umeyama.scale - 1.0) > 1e-3
+
+
+def test_the_rotation_vector_is_scipys_to_the_last_bit_whatever_the_check_it_skips():
+    """log_rotation skips scipy's orthonormality check for a rotation well within it; the
+    vectors are still scipy's own, and a matrix that is not a rotation takes scipy's full path."""
+    from scipy.spatial.transform import Rotation
+
+    from frisicp_core.rotations import log_rotation
+
+    turns = Rotation.random(200, random_state=3).as_matrix()
+    products = turns @ Rotation.random(200, random_state=4).as_matrix().transpose(0, 2, 1)
+    for matrix in products:
+        np.testing.assert_array_equal(log_rotation(matrix), Rotation.from_matrix(matrix).as_rotvec())
+    skewed = products[0] * 1.001  # re-fitted to a rotation by scipy
+    np.testing.assert_array_equal(log_rotation(skewed), Rotation.from_matrix(skewed).as_rotvec())
+    with pytest.raises(ValueError, match="determinant"):
+        log_rotation(-products[0])

@@ -21,9 +21,9 @@ class WatchingNeighbors(NearestNeighbors):
 
     seen: ClassVar[list[dict[str, int]]] = []
 
-    def query(self, queries):
+    def query(self, queries, bound=None):
         WatchingNeighbors.seen.append(thread_counts())
-        return super().query(queries)
+        return super().query(queries, bound)
 
 
 def test_register_runs_one_thread_per_library_and_restores_the_callers_count():
