@@ -175,16 +175,9 @@ def rows_of(pairs: Pairs, rows: np.ndarray) -> Pairs:
     backward = pairs.backward
     return Pairs(
         pairs.forward_index[rows],
-        Selection(
-            pairs.forward.keep[rows],
-            pairs.forward.kept[rows],
-            pairs.forward.sum_sq[rows],
-            pairs.forward.merit[rows],
-        ),
+        pairs.forward.take(rows),
         pairs.backward_index[rows] if pairs.backward_index is not None else None,
-        Selection(backward.keep[rows], backward.kept[rows], backward.sum_sq[rows], backward.merit[rows])
-        if backward is not None
-        else None,
+        backward.take(rows) if backward is not None else None,
         pairs.merit[rows],
     )
 

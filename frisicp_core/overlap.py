@@ -59,20 +59,28 @@ class Selection:
 
     ``keep`` (K, n) marks them; ``kept`` (K,) counts them; ``sum_sq`` (K,) is the sum of their
     squared distances; ``merit`` (K,) is psi of the kept pairs for the automatic overlap, else
-    their mean squared distance.
+    their mean squared distance; ``cut`` (K,) the largest kept squared distance.
     """
 
     keep: np.ndarray
     kept: FloatArray
     sum_sq: FloatArray
     merit: FloatArray
+    cut: FloatArray
 
     def assign(self, rows: np.ndarray, other: Selection) -> Selection:
         """A copy with the selections of poses ``rows`` (indices) replaced by ``other``'s."""
-        fields = [a.copy() for a in (self.keep, self.kept, self.sum_sq, self.merit)]
-        for mine, theirs in zip(fields, (other.keep, other.kept, other.sum_sq, other.merit), strict=True):
+        fields = [a.copy() for a in self._fields()]
+        for mine, theirs in zip(fields, other._fields(), strict=True):
             mine[rows] = theirs
         return Selection(*fields)
+
+    def take(self, rows: np.ndarray) -> Selection:
+        """The selections of poses ``rows`` only."""
+        return Selection(*(field[rows] for field in self._fields()))
+
+    def _fields(self) -> tuple[np.ndarray, ...]:
+        return (self.keep, self.kept, self.sum_sq, self.merit, self.cut)
 
     @property
     def fraction(self) -> FloatArray:
@@ -94,23 +102,25 @@ def select_pairs(
     """
     n = dist_sq.shape[1]
     if overlap is None:
-        keep = _trimmed_overlap(dist_sq, floor_sq)
+        keep, cut = _trimmed_overlap(dist_sq, floor_sq)
     elif overlap < 1.0:
         count = max(1, int(np.ceil(overlap * n)))
-        threshold = np.partition(dist_sq, count - 1, axis=1)[:, count - 1]
-        keep = dist_sq <= threshold[:, None]
+        cut = np.partition(dist_sq, count - 1, axis=1)[:, count - 1]
+        keep = dist_sq <= cut[:, None]
     else:
         keep = np.ones(dist_sq.shape, dtype=bool)
+        cut = np.max(dist_sq, axis=1)
     if max_distance is not None:
         limit = max_distance**2 * np.nanmedian(np.where(keep, dist_sq, np.nan), axis=1)
         keep &= dist_sq <= limit[:, None]
+        cut = np.max(np.where(keep, dist_sq, 0.0), axis=1)
     kept = keep.sum(axis=1).astype(np.float64)
     sum_sq = np.where(keep, dist_sq, 0.0).sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):
         merit = sum_sq / kept
         if overlap is None:
             merit = merit / (kept / n) ** (1.0 + TRIM_LAMBDA)
-    return Selection(keep, kept, sum_sq, merit)
+    return Selection(keep, kept, sum_sq, merit, cut)
 
 
 def select_within(
@@ -129,13 +139,13 @@ def select_within(
     kept adds 0 either way)."""
     known = np.where(np.isfinite(dist_sq), dist_sq, bound_sq[:, None])
     selection = select_pairs(known, floor_sq, None, None)
-    cut = np.max(np.where(selection.keep, known, 0.0), axis=1)
-    exact: np.ndarray = (cut < bound_sq) & (floor_sq < bound_sq)
+    exact: np.ndarray = (selection.cut < bound_sq) & (floor_sq < bound_sq)
     return selection, exact
 
 
-def _trimmed_overlap(dist_sq: FloatArray, floor_sq: FloatArray) -> np.ndarray:
-    """TrICP's psi minimisation for each row (module doc): the mask of the kept pairs."""
+def _trimmed_overlap(dist_sq: FloatArray, floor_sq: FloatArray) -> tuple[np.ndarray, FloatArray]:
+    """TrICP's psi minimisation for each row (module doc): the mask of the kept pairs and the
+    largest kept squared distance."""
     rows, n = dist_sq.shape
     ordered = np.sort(dist_sq, axis=1)
     counts = np.arange(1, n + 1, dtype=np.float64)
@@ -147,4 +157,4 @@ def _trimmed_overlap(dist_sq: FloatArray, floor_sq: FloatArray) -> np.ndarray:
     best = np.argmin(psi, axis=1)
     threshold = ordered[np.arange(rows), best]
     keep: np.ndarray = dist_sq <= threshold[:, None]
-    return keep
+    return keep, threshold

@@ -133,7 +133,7 @@ class Solver:
             assert level.data_tree is not None
             mapped = poses.apply_inverse(level.model)
             floor_sq = (level.data_spacing * poses.scale) ** 2
-            bound = self._backward_bound(forward_sq, forward, floor_sq, poses.scale)
+            bound = self._backward_bound(forward, floor_sq, poses.scale)
             backward_sq, backward_index = level.data_tree.query(mapped.reshape(-1, dim), bound)
             # Measured in the data frame; times s gives the model frame, like the forward ones.
             backward_sq = backward_sq.reshape(count, -1) * poses.scale[:, None] ** 2
@@ -153,9 +153,7 @@ class Solver:
                     )
         return Pairs(forward_index, forward, backward_index, backward, self.merit(forward, backward, poses))
 
-    def _backward_bound(
-        self, forward_sq: FloatArray, forward: Selection, floor_sq: FloatArray, scale: FloatArray
-    ) -> float | None:
+    def _backward_bound(self, forward: Selection, floor_sq: FloatArray, scale: FloatArray) -> float | None:
         """How far (data units) the backward queries need look, or None for everywhere.
 
         A crop's backward pairs are mostly model points far from it, the most expensive queries
@@ -168,9 +166,8 @@ class Solver:
         and gating need every distance: no bound."""
         if self.config.overlap is not None or self.config.max_distance is not None:
             return None
-        cut_sq = np.max(np.where(forward.keep, forward_sq, 0.0), axis=1)
         with np.errstate(divide="ignore", invalid="ignore", over="ignore"):  # a scale of 1e-200
-            reach_sq = np.maximum(_BACKWARD_REACH**2 * cut_sq, 4.0 * floor_sq) / scale**2
+            reach_sq = np.maximum(_BACKWARD_REACH**2 * forward.cut, 4.0 * floor_sq) / scale**2
             bound = float(np.sqrt(np.max(reach_sq)))
         return bound if np.isfinite(bound) else None
 
