@@ -14,7 +14,13 @@ Usage::
     python benchmarks/speed_ab.py 7e9cfcc^            # before the partial-overlap core vs the working tree
     python benchmarks/speed_ab.py A --after B --threads 0 --repeats 7 --out docs/speed_ab.md
     python benchmarks/speed_ab.py 67ac26e^ --warm     # before issue 14, warm starts (tracking)
+    python benchmarks/speed_ab.py 82b55a7^ --crops    # cold crops of real scenes (global search)
     python benchmarks/speed_ab.py --quick             # HEAD vs the working tree, 2 scales, once -> build/
+
+``--crops`` times partial-overlap cold registrations instead, the cases that run the global
+search: ``benchmarks/trustworthy.py``'s "crop onto scene" cases of 30-60 % crops at the node's
+10,000-point cap, the first (index order) of each share on each of its scenes (12 cases; the
+crops are built by today's code and handed to both workers as arrays, with the truth).
 
 ``--threads 1`` (default) sets OMP_NUM_THREADS=1 in both workers, as ``make bench-paper`` does;
 0 leaves OpenMP's default. Exits 0 without measuring when the bunny (in ``--data``) is absent or
@@ -35,6 +41,7 @@ import tempfile
 import time
 from datetime import date
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -59,15 +66,21 @@ def worker(points: str) -> int:
     print(json.dumps({"core": str(Path(frisicp_core.__file__).parent)}), flush=True)
     for line in sys.stdin:
         request = json.loads(line)
-        scale = request["scale"]
-        forward = forward_similarity(scale)
-        data = forward.apply(model)
-        truth = forward.inverse()
         config = RegistrationConfig()
-        if request.get("warm"):
-            config = RegistrationConfig(initial=warm_start(truth, np.random.default_rng(round(10 * scale))))
+        if "case" in request:  # a crop case (--crops): data, model and the truth as a matrix
+            case = np.load(request["case"])
+            data, case_model = case["data"], case["model"]
+            truth = frisicp_core.Similarity.from_matrix(case["truth"])
+        else:
+            scale = request["scale"]
+            forward = forward_similarity(scale)
+            data, case_model = forward.apply(model), model
+            truth = forward.inverse()
+            if request.get("warm"):
+                start_pose = warm_start(truth, np.random.default_rng(round(10 * scale)))
+                config = RegistrationConfig(initial=start_pose)
         start = time.perf_counter()
-        result = register(data, model, config)
+        result = register(data, case_model, config)
         seconds = time.perf_counter() - start
         rotation = float(np.degrees(rotation_angle(result.similarity.rotation @ truth.rotation.T)))
         scale_error = abs(result.similarity.scale / truth.scale - 1.0)
@@ -99,9 +112,11 @@ class Worker:
         if Path(self.core).parent.resolve() != core_parent.resolve():
             raise RuntimeError(f"{label}: imported {self.core}, not the revision's copy in {core_parent}")
 
-    def time(self, scale: float, warm: bool = False) -> dict[str, float]:
+    def time(self, scale: float | Path, warm: bool = False) -> dict[str, float]:
+        """One registration: a bunny case by its scale, or a crop case by its file (``--crops``)."""
         assert self.process.stdin is not None
-        self.process.stdin.write(json.dumps({"scale": scale, "warm": warm}) + "\n")
+        request = {"case": str(scale)} if isinstance(scale, Path) else {"scale": scale, "warm": warm}
+        self.process.stdin.write(json.dumps(request) + "\n")
         self.process.stdin.flush()
         return self._read()
 
@@ -125,6 +140,33 @@ def points_file(cloud: Path, folder: Path) -> Path:
     path = folder / f"{cloud.stem}.npy"
     np.save(path, read_points(cloud))
     return path
+
+
+def crop_files(data_dir: Path, folder: Path, quick: bool) -> dict[str, Path]:
+    """``--crops``' cases (module doc) built by today's code, one .npz file each (data, model,
+    truth matrix), by case name."""
+    import trustworthy
+
+    files: dict[str, Path] = {}
+    taken: set[tuple[str, float]] = set()
+    for spec in trustworthy.specs(quick=False):
+        share = spec.crop_share
+        if spec.suite != "crop onto scene" or spec.cap != trustworthy.CAP or share is None or share < 0.3:
+            continue
+        if (spec.scene, share) in taken or (quick and files):
+            continue
+        taken.add((spec.scene, share))
+        rng = np.random.default_rng(spec.seed)
+        case = trustworthy.build(spec, data_dir, rng)
+        data, model = (
+            trustworthy.capped(case.data, spec.cap, rng),
+            trustworthy.capped(case.model, spec.cap, rng),
+        )
+        assert case.truth is not None
+        path = folder / f"crop{len(files)}.npz"
+        np.savez(path, data=data, model=model, truth=case.truth.matrix())
+        files[case.name] = path
+    return files
 
 
 def extract_core(revision: str, into: Path) -> tuple[Path, str]:
@@ -190,6 +232,9 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--warm", action="store_true", help="start 2 deg / 2 %% off the truth (core_speed's warm start)"
     )
+    parser.add_argument(
+        "--crops", action="store_true", help="cold 30-60 %% crops of real scenes (trustworthy.py's cases)"
+    )
     args = script.parse(parser, argv)
     if args.quick:
         args.before, args.repeats = args.before or "HEAD", 1
@@ -208,28 +253,31 @@ def main(argv: list[str] | None = None) -> int:
             for label, rev in (("before", args.before), ("after", args.after))
         }
         points = points_file(bunny, Path(folder))
+        cases: dict[str, float | Path] = {f"{scale:.1f}": scale for scale in scales}
+        if args.crops:
+            cases = dict(crop_files(args.data, Path(folder), args.quick))
         workers = {label: Worker(label, parent, args.threads, points) for label, (parent, _) in cores.items()}
         try:
             for w in workers.values():
-                w.time(scales[0], args.warm)  # warm-up: imports, first trees
-            samples: dict[str, dict[float, list[dict[str, float]]]] = {
-                label: {s: [] for s in scales} for label in workers
+                w.time(next(iter(cases.values())), args.warm)  # warm-up: imports, first trees
+            samples: dict[str, dict[str, list[dict[str, float]]]] = {
+                label: {name: [] for name in cases} for label in workers
             }
             order = list(workers)
             for repeat in range(args.repeats):
-                for k, scale in enumerate(scales):
+                for k, (name, case) in enumerate(cases.items()):
                     # Alternate who goes first, so neither always follows the other's cache footprint.
                     for label in order if (repeat + k) % 2 == 0 else order[::-1]:
-                        samples[label][scale].append(workers[label].time(scale, args.warm))
+                        samples[label][name].append(workers[label].time(case, args.warm))
                 print(f"repeat {repeat + 1}/{args.repeats} done", flush=True)
         finally:
             for w in workers.values():
                 w.close()
     rows = []
-    for scale in scales:
-        row: dict[str, float] = {"s": scale}
+    for name in cases:
+        row: dict[str, Any] = {"case": name}
         for label in workers:
-            runs = samples[label][scale]
+            runs = samples[label][name]
             row[f"{label}_ms"] = 1e3 * statistics.median(r["seconds"] for r in runs)
             row[f"{label}_rotation_deg"] = max(r["rotation_deg"] for r in runs)
             row[f"{label}_scale_error"] = max(r["scale_error"] for r in runs)
@@ -247,11 +295,11 @@ def main(argv: list[str] | None = None) -> int:
     }
     for r in rows:
         print(
-            f"s={r['s']:<4} before {r['before_ms']:7.1f} ms  after {r['after_ms']:7.1f} ms  ratio {r['ratio']:.2f}"
+            f"{r['case']:<36} before {r['before_ms']:7.1f} ms  after {r['after_ms']:7.1f} ms  ratio {r['ratio']:.2f}"
         )
     print(
         f"median ratio {summary['median_ratio']:.2f}, worst {summary['worst_ratio']:.2f}, "
-        f"sum over scales {summary['total_ratio']:.2f} (after / before)"
+        f"sum over cases {summary['total_ratio']:.2f} (after / before)"
     )
     write_report(args, cores, rows, summary)
     return 0
@@ -260,7 +308,7 @@ def main(argv: list[str] | None = None) -> int:
 def write_report(
     args: argparse.Namespace,
     cores: dict[str, tuple[Path, str]],
-    rows: list[dict[str, float]],
+    rows: list[dict[str, Any]],
     summary: dict[str, float],
 ) -> None:
     from frisicp_bench import script
@@ -268,12 +316,18 @@ def write_report(
     threads = f"OMP_NUM_THREADS={args.threads}" if args.threads else "OpenMP's default threads"
     command = script.command_line(args)
     lines = [
-        "# Core speed before and after: `register` on the full-overlap cases of `make bench`, interleaved",
+        "# Core speed before and after: `register` on "
+        + (
+            "cold 30-60 % crops of real scenes (trustworthy.py's)"
+            if args.crops
+            else "the full-overlap cases of `make bench`"
+        )
+        + ", interleaved",
         "",
         f"Start: {'warm, 2 deg / 2 % off the truth' if args.warm else 'cold'}.",
         "",
         f"Generated by `{command}` on {date.today().isoformat()} ({platform.machine()}, {os.cpu_count()} CPUs, "
-        f"Python {platform.python_version()}, {threads}); medians of {args.repeats} runs per scale, the two "
+        f"Python {platform.python_version()}, {threads}); medians of {args.repeats} runs per case, the two "
         "revisions alternating case by case in one session (see the script's docstring).",
         "",
         f"- before: {cores['before'][1]}",
@@ -281,16 +335,17 @@ def write_report(
         f"- load average {summary['load_average_start']:.2f} at the start, {summary['load_average_end']:.2f} at the "
         "end: the machine is shared, so absolute times are inflated and noisy; the ratios are what this measures.",
         "",
-        f"**after / before: median over the {len(rows)} scales {summary['median_ratio']:.2f}, worst scale "
+        f"**after / before: median over the {len(rows)} cases {summary['median_ratio']:.2f}, worst case "
         f"{summary['worst_ratio']:.2f}, total time {summary['total_ratio']:.2f}** (median register "
         f"{summary['median_before_ms']:.0f} ms before, {summary['median_after_ms']:.0f} ms after).",
         "",
-        "| s | before ms | after ms | after / before | before: worst rotation error (deg), scale error | after: same |",
+        f"| {'case' if args.crops else 's'} | before ms | after ms | after / before "
+        "| before: worst rotation error (deg), scale error | after: same |",
         "|---|---|---|---|---|---|",
     ]
     for r in rows:
         lines.append(
-            f"| {r['s']:.1f} | {r['before_ms']:.1f} | {r['after_ms']:.1f} | {r['ratio']:.2f} | "
+            f"| {r['case']} | {r['before_ms']:.1f} | {r['after_ms']:.1f} | {r['ratio']:.2f} | "
             f"{r['before_rotation_deg']:.1e}, {r['before_scale_error']:.1e} | "
             f"{r['after_rotation_deg']:.1e}, {r['after_scale_error']:.1e} |"
         )
