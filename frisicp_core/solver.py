@@ -49,10 +49,9 @@ _SIGNIFICANT = 3.0
 # surface, and waiting a step there costs one (10k-point node pairs of a moving sensor: mean
 # 3.5 -> 3.0 passes).
 ACCELERATE_FROM = 3
-# The backward queries are bounded at this many times the forward pairs' cut-off (see
-# Solver.correspond).
-_BACKWARD_REACH = 5.0
 ACCELERATE_FROM_TRACKING = 2
+# The backward queries look this many times the forward pairs' cut-off far (Solver._backward_bound).
+_BACKWARD_REACH = 5.0
 
 
 def _finalists(minima: list[tuple[float, Similarity]], level: Level, tolerance: float) -> list[Similarity]:
@@ -142,15 +141,14 @@ class Solver:
                 backward = select_pairs(backward_sq, floor_sq, config.overlap, config.max_distance)
             else:
                 backward, exact = select_within(backward_sq, floor_sq, (bound * poses.scale) ** 2)
-                for k in np.flatnonzero(~exact):  # cut beyond the bound: the row's pairs in full
+                undecided = np.flatnonzero(~exact)
+                for k in undecided:  # the cut may lie beyond the bound: the pose's pairs in full
                     far = ~np.isfinite(backward_sq[k])
                     far_sq, backward_index[k, far] = level.data_tree.query(mapped[k, far])
                     backward_sq[k, far] = far_sq * poses.scale[k] ** 2
-                if not exact.all():
-                    rows = np.flatnonzero(~exact)
-                    backward = backward.assign(
-                        rows, select_pairs(backward_sq[rows], floor_sq[rows], None, None)
-                    )
+                if undecided.size:
+                    full = select_pairs(backward_sq[undecided], floor_sq[undecided], None, None)
+                    backward = backward.assign(undecided, full)
         return Pairs(forward_index, forward, backward_index, backward, self.merit(forward, backward, poses))
 
     def _backward_bound(self, forward: Selection, floor_sq: FloatArray, scale: FloatArray) -> float | None:
@@ -161,8 +159,8 @@ class Solver:
         same overlap at the same noise, so their cut-offs are alike: the backward queries look
         :data:`_BACKWARD_REACH` times the forward cut-off far (at least twice the data's
         spacing), and :func:`frisicp_core.overlap.select_within` keeps exactly the pairs the
-        full queries would. A pose whose backward cut-off lies beyond (12 of 1,978 passes of
-        20,000-point crops of a room in it) has its far points queried in full. Fixed overlap
+        full queries would. A pose whose backward cut-off may lie beyond (12 of 1,978 pose-passes
+        of 20,000-point crops of a room in it) has its far points queried in full. Fixed overlap
         and gating need every distance: no bound."""
         if self.config.overlap is not None or self.config.max_distance is not None:
             return None
