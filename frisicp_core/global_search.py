@@ -101,10 +101,15 @@ def _coverage(poses: list[Similarity], data: FloatArray, model: PreparedModel, r
     data_sample = data[:: max(1, data.shape[0] // _COVERAGE_SAMPLE)]
     model_sample = model.points[:: max(1, len(model) // _COVERAGE_SAMPLE)]
     model_tree, data_tree = model.tree(), NearestNeighbors(data)
+    # Only whether a point comes within ``reach`` counts, so the queries give up beyond it (a
+    # wrong pose throws most points far off, the dearest queries); the bound is a hair wider so
+    # that a distance of exactly ``reach`` is still found.
+    bound = reach * (1.0 + 1e-9)
     shares = np.zeros(len(poses))
     for k, pose in enumerate(poses):
-        forward, _ = model_tree.query(pose.apply(data_sample))
-        backward, _ = data_tree.query(pose.inverse().apply(model_sample))
+        forward, _ = model_tree.query(pose.apply(data_sample), bound)
+        back_bound = bound / pose.scale if pose.scale > 0 else None
+        backward, _ = data_tree.query(pose.inverse().apply(model_sample), back_bound)
         shares[k] = np.mean(forward <= reach**2) + np.mean(backward * pose.scale**2 <= reach**2)
     return shares
 
