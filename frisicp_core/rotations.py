@@ -11,7 +11,6 @@ ROS's PoseWithCovariance expects for roll, pitch and yaw).
 
 from __future__ import annotations
 
-import inspect
 from functools import cache
 
 import numpy as np
@@ -20,12 +19,23 @@ from scipy.spatial.transform import Rotation
 
 from .similarity import FloatArray
 
+
+def _takes_assume_valid() -> bool:
+    """Whether this scipy's Rotation.from_matrix has ``assume_valid`` (asked by calling it: an
+    older scipy's is a compiled method without an introspectable signature)."""
+    try:
+        Rotation.from_matrix(np.eye(3), assume_valid=True)  # type: ignore[call-arg,unused-ignore]
+    except TypeError:
+        return False
+    return True
+
+
 # scipy >= 1.17 checks every matrix given to Rotation.from_matrix for orthonormality (re-fitting
 # one that is not: |R R^T - I| > 1e-12) at ~50 us a call, most of an accelerated ICP step's
 # bookkeeping on small sets; ``assume_valid`` skips the check. A rotation well inside that bound
 # (the solver's are orthonormal to ~1e-15) is one it takes as it is either way, so the rotation
 # vector is the same to the last bit. Older scipy has no such check, nor the option.
-_ASSUME_VALID = "assume_valid" in inspect.signature(Rotation.from_matrix).parameters
+_ASSUME_VALID = _takes_assume_valid()
 _ORTHONORMAL = 1e-13
 
 
