@@ -15,7 +15,7 @@ Usage::
     python benchmarks/speed_ab.py A --after B --threads 0 --repeats 7 --out docs/speed_ab.md
     python benchmarks/speed_ab.py 67ac26e^ --warm     # before issue 14, warm starts (tracking)
     python benchmarks/speed_ab.py 82b55a7^ --crops    # cold crops of real scenes (global search)
-    python benchmarks/speed_ab.py --quick             # HEAD vs the working tree, 2 scales, once -> build/
+    python benchmarks/speed_ab.py --quick             # HEAD vs the working tree, 2 scales and a crop, once -> build/
 
 ``--crops`` times partial-overlap cold registrations instead, the cases that run the global
 search: ``benchmarks/trustworthy.py``'s "crop onto scene" cases of 30-60 % crops at the node's
@@ -222,7 +222,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from frisicp_bench import script
 
-    quick = "HEAD against the working tree, 2 scales, once"
+    quick = "HEAD against the working tree, 2 scales and one crop (--crops: one crop), once"
     parser = script.parser(__file__, __doc__, quick, data=True, report=True, repeats=5)
     parser.add_argument("before", nargs="?", help="git revision of the reference core, e.g. 7e9cfcc^")
     parser.add_argument(
@@ -256,6 +256,8 @@ def main(argv: list[str] | None = None) -> int:
         cases: dict[str, float | Path] = {f"{scale:.1f}": scale for scale in scales}
         if args.crops:
             cases = dict(crop_files(args.data, Path(folder), args.quick))
+        elif args.quick and (args.data / "real").is_dir():  # the smoke run takes both paths
+            cases.update(crop_files(args.data, Path(folder), quick=True))
         workers = {label: Worker(label, parent, args.threads, points) for label, (parent, _) in cores.items()}
         try:
             for w in workers.values():
