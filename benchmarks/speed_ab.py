@@ -112,10 +112,11 @@ class Worker:
         if Path(self.core).parent.resolve() != core_parent.resolve():
             raise RuntimeError(f"{label}: imported {self.core}, not the revision's copy in {core_parent}")
 
-    def time(self, scale: float | Path, warm: bool = False) -> dict[str, float]:
-        """One registration: a bunny case by its scale, or a crop case by its file (``--crops``)."""
+    def time(self, case: float | Path, warm: bool = False) -> dict[str, float]:
+        """One registration: a bunny case by its scale, or a crop case by its file (``--crops``,
+        always cold)."""
         assert self.process.stdin is not None
-        request = {"case": str(scale)} if isinstance(scale, Path) else {"scale": scale, "warm": warm}
+        request = {"case": str(case)} if isinstance(case, Path) else {"scale": case, "warm": warm}
         self.process.stdin.write(json.dumps(request) + "\n")
         self.process.stdin.flush()
         return self._read()
@@ -240,6 +241,8 @@ def main(argv: list[str] | None = None) -> int:
         args.before, args.repeats = args.before or "HEAD", 1
     if args.before is None:
         parser.error("the reference revision is required")
+    if args.crops and args.warm:
+        parser.error("--crops times cold registrations: no --warm")
     scales = script.SMOKE_SCALES if args.quick else SCALES
     bunny = args.data / BUNNY
     if not bunny.exists():
