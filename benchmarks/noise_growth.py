@@ -28,15 +28,13 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")  # before numpy and pykdtree load
 import functools
 import statistics
 import sys
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from trustworthy import CAP, Spec, build, capped, specs, within_3_sigma
+from trustworthy import CAP, Spec, capped_case, specs, within_3_sigma
 
 from frisicp_bench import script
-from frisicp_bench.datasets import DataMissingError
 from frisicp_bench.metrics import pose_errors
 from frisicp_bench.report import write_report
 from frisicp_core import RegistrationResult, register
@@ -73,9 +71,7 @@ def local_sigmas(result: RegistrationResult) -> dict[str, float] | None:
 
 def measure(spec: Spec, data_dir: Path) -> dict[str, Any]:
     """Build ``spec``'s case as ``trustworthy.py`` does, register it as built and noisier."""
-    rng = np.random.default_rng(spec.seed)
-    case = build(spec, data_dir, rng)
-    data, model = capped(case.data, spec.cap, rng), capped(case.model, spec.cap, rng)
+    case, data, model, _ = capped_case(spec, data_dir)
     assert case.truth is not None
     truth, diagonal = case.truth, case.model_diagonal
     entry: dict[str, Any] = {"suite": spec.suite, "case": case.name}
@@ -154,15 +150,9 @@ def main(argv: list[str] | None = None) -> int:
     args = script.parse(command, argv)
     if not (args.data / "real").is_dir() or not (args.data / "bunny").is_dir():
         return script.skip(args, f"no data: {args.data}/real and {args.data}/bunny are needed")
-    records: list[dict[str, Any]] = []
-    try:
-        with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-            for entry in pool.map(functools.partial(measure, data_dir=args.data), cases(args.quick)):
-                records.append(entry)
-                sigmas = [entry[label]["sigma"] for label in ("built", "noisier")]
-                print(entry["suite"], entry["case"], *sigmas, file=sys.stderr, flush=True)
-    except DataMissingError as err:
-        return script.skip(args, f"no data: {err}")
+    records = script.map_cases(args, functools.partial(measure, data_dir=args.data), cases(args.quick), _line)
+    if records is None:
+        return 0
     header, rows = summarise(records)
     wrong = sum(e["noisier"]["reliable"] and not e["noisier"]["right"] for e in records)
     summary = (
@@ -172,6 +162,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     write_report(args.out, TITLE, script.command_line(args), summary, (header, rows), records)
     return 0
+
+
+def _line(entry: dict[str, Any]) -> str:
+    sigmas = [entry[label]["sigma"] for label in ("built", "noisier")]
+    return f"{entry['suite']} {entry['case']} {sigmas[0]} {sigmas[1]}"
 
 
 if __name__ == "__main__":

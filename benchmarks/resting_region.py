@@ -37,15 +37,13 @@ import functools
 import statistics
 import sys
 import time
-from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from trustworthy import Spec, build, capped, specs, within_3_sigma
+from trustworthy import Spec, capped_case, specs, within_3_sigma
 
 from frisicp_bench import script
-from frisicp_bench.datasets import DataMissingError
 from frisicp_bench.metrics import pose_errors
 from frisicp_bench.report import write_report
 from frisicp_core import RegistrationConfig, RegistrationResult, register
@@ -79,9 +77,7 @@ def rests(data: np.ndarray, model: np.ndarray, result: RegistrationResult) -> li
 
 def score(spec: Spec, data_dir: Path) -> dict[str, Any]:
     """Build the case as ``trustworthy.py`` does, register it cold, and probe a reliable answer."""
-    rng = np.random.default_rng(spec.seed)
-    case = build(spec, data_dir, rng)
-    data, model = capped(case.data, spec.cap, rng), capped(case.model, spec.cap, rng)
+    case, data, model, _ = capped_case(spec, data_dir)
     started = time.perf_counter()
     result = register(data, model)
     entry: dict[str, Any] = {
@@ -149,14 +145,14 @@ def main(argv: list[str] | None = None) -> int:
     todo = [spec for spec in specs(quick=False) if spec.suite in SUITES]
     if args.quick:
         todo = [spec for spec in todo if spec.suite == "frames"][:1]
-    records: list[dict[str, Any]] = []
-    try:
-        with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-            for entry in pool.map(functools.partial(score, data_dir=args.data), todo):
-                records.append(entry)
-                print(entry["case"], entry["cap"], entry.get("rests"), file=sys.stderr, flush=True)
-    except DataMissingError as err:
-        return script.skip(args, f"no data: {err}")
+    records = script.map_cases(
+        args,
+        functools.partial(score, data_dir=args.data),
+        todo,
+        lambda entry: f"{entry['case']} {entry['cap']} {entry.get('rests')}",
+    )
+    if records is None:
+        return 0
     header, rows = summarise(records)
     probed = [e for e in records if "rests" in e]
     loose = sum(max(e["rests"]) > NOT_PULLED_BACK for e in probed)

@@ -157,12 +157,7 @@ def crop_files(data_dir: Path, folder: Path, quick: bool) -> dict[str, Path]:
         if (spec.scene, share) in taken or (quick and files):
             continue
         taken.add((spec.scene, share))
-        rng = np.random.default_rng(spec.seed)
-        case = trustworthy.build(spec, data_dir, rng)
-        data, model = (
-            trustworthy.capped(case.data, spec.cap, rng),
-            trustworthy.capped(case.model, spec.cap, rng),
-        )
+        case, data, model, _ = trustworthy.capped_case(spec, data_dir)
         assert case.truth is not None
         path = folder / f"crop{len(files)}.npz"
         np.savez(path, data=data, model=model, truth=case.truth.matrix())

@@ -45,6 +45,7 @@ Exits 0 without measuring when the data folder is absent, saying so.
 
 from __future__ import annotations
 
+import functools
 import os
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")  # before numpy and pykdtree load
@@ -52,8 +53,6 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")  # before numpy and pykdtree load
 import sys
 import time
 import zlib
-from collections.abc import Callable
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -62,7 +61,7 @@ import numpy as np
 
 from frisicp_bench import scenes, script
 from frisicp_bench.cases import PAPER_SCALES
-from frisicp_bench.datasets import DataMissingError, scan_pose
+from frisicp_bench.datasets import scan_pose
 from frisicp_bench.metrics import PoseErrors, pose_errors
 from frisicp_bench.report import markdown_table, write_report
 from frisicp_core import (
@@ -200,11 +199,19 @@ def jumped(case: scenes.SceneCase, degrees: float, rng: np.random.Generator) -> 
     return jump.apply(case.data), case.truth @ jump.inverse()
 
 
-def score(spec: Spec, data_dir: Path) -> dict[str, Any]:
-    """Build, register and score one case."""
+def capped_case(
+    spec: Spec, data_dir: Path
+) -> tuple[scenes.SceneCase, np.ndarray, np.ndarray, np.random.Generator]:
+    """``spec``'s case as every script registers it: built from its seed, data and model capped
+    at ``spec.cap``; and the seed's generator where that leaves it (the jump suite draws on)."""
     rng = np.random.default_rng(spec.seed)
     case = build(spec, data_dir, rng)
-    data, model = capped(case.data, spec.cap, rng), capped(case.model, spec.cap, rng)
+    return case, capped(case.data, spec.cap, rng), capped(case.model, spec.cap, rng), rng
+
+
+def score(spec: Spec, data_dir: Path) -> dict[str, Any]:
+    """Build, register and score one case."""
+    case, data, model, rng = capped_case(spec, data_dir)
     truth = case.truth
     started = time.perf_counter()
     if spec.suite == "jump":
@@ -391,15 +398,9 @@ def main(argv: list[str] | None = None) -> int:
     if not (args.data / "real").is_dir() or not (args.data / "bunny").is_dir():
         return script.skip(args, f"no data: {args.data}/real and {args.data}/bunny are needed")
     todo = [spec for spec in specs(args.quick) if not args.suite or spec.suite in args.suite]
-    records: list[dict[str, Any]] = []
-    run: Callable[[Spec], dict[str, Any]] = _Scorer(args.data)
-    try:
-        with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
-            for entry in pool.map(run, todo):
-                records.append(entry)
-                print(_line(entry), file=sys.stderr, flush=True)
-    except DataMissingError as err:
-        return script.skip(args, f"no data: {err}")
+    records = script.map_cases(args, functools.partial(score, data_dir=args.data), todo, _line)
+    if records is None:
+        return 0
     header, rows = summarise(records)
     wrong = sum(e["reliable"] and not e["right"] for e in records)
     refused = [e for e in records if not e["reliable"] and "truth_start" in e]
@@ -416,16 +417,6 @@ def main(argv: list[str] | None = None) -> int:
     )
     write_report(args.out, TITLE, script.command_line(args), summary, (header, rows), records)
     return 0
-
-
-@dataclass(frozen=True)
-class _Scorer:
-    """Picklable ``score`` bound to the data folder (for the process pool)."""
-
-    data_dir: Path
-
-    def __call__(self, spec: Spec) -> dict[str, Any]:
-        return score(spec, self.data_dir)
 
 
 def _line(entry: dict[str, Any]) -> str:

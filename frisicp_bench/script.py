@@ -16,13 +16,15 @@ import argparse
 import json
 import shlex
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 from typing import Any, TypeVar
 
 from .datasets import DataMissingError, default_data_dir
 
 T = TypeVar("T")
+S = TypeVar("S")
 
 # The scales of a smoke run: the extremes of the paper's 15.
 SMOKE_SCALES = (0.1, 2.9)
@@ -116,6 +118,25 @@ def load_data(args: argparse.Namespace, load: Callable[[Path], T]) -> T | None:
     except DataMissingError as err:
         skip(args, f"no data: {err}")
         return None
+
+
+def map_cases(
+    args: argparse.Namespace, work: Callable[[S], T], cases: Iterable[S], line: Callable[[T], str]
+) -> list[T] | None:
+    """``work`` on every case in ``args.jobs`` worker processes (``work`` must pickle: a module
+    function, or one bound by ``functools.partial``), the results in the cases' order, each
+    result's ``line`` on stderr as it comes; or None after saying which data file is missing
+    (:func:`skip`)."""
+    results: list[T] = []
+    try:
+        with ProcessPoolExecutor(max_workers=max(1, args.jobs)) as pool:
+            for result in pool.map(work, cases):
+                results.append(result)
+                print(line(result), file=sys.stderr, flush=True)
+    except DataMissingError as err:
+        skip(args, f"no data: {err}")
+        return None
+    return results
 
 
 def write_json(path: Path | None, document: Any) -> None:
