@@ -37,8 +37,15 @@ must never emit. Calibration: among the reliable
 (rotation angle against 3 rotation_deg, |log scale| against 3 scale, the centroid's offset
 against 3 translation).
 
+*Fresh draws* (``--draw N``): the same recipes with every case's seed salted by N: other crops,
+frames, noise, scales, turns and jumps than the committed run's, which the method was never
+looked at on. ``--scenes`` puts other clouds of the data folder in the scene suites (e.g. the
+chef figure, the second dragon sampling and a real bunny scan, none of them a development
+scene), ``--full-resolution ''`` leaves out the full-resolution runs.
+
 Usage: python benchmarks/trustworthy.py [--jobs 2] [--data DIR] [--out docs/trustworthy.md]
-                                       [--suite "crop onto scene" ...]
+                                       [--suite "crop onto scene" ...] [--draw N]
+                                       [--scenes a.pcd,b.xyz] [--full-resolution a.pcd]
        python benchmarks/trustworthy.py --quick   # one case of each suite at the cap -> build/
 Exits 0 without measuring when the data folder is absent, saying so.
 """
@@ -108,10 +115,12 @@ class Spec:
     scene: str
     index: int
     cap: int
+    draw: int = 0  # 0: the committed cases; another number: fresh draws of the same recipes
 
     @property
     def seed(self) -> int:
-        return zlib.crc32(f"{self.suite}/{self.scene}/{self.index}/{self.cap}".encode())
+        key = f"{self.suite}/{self.scene}/{self.index}/{self.cap}"
+        return zlib.crc32((key + (f"/draw {self.draw}" if self.draw else "")).encode())
 
     @property
     def crop_share(self) -> float | None:
@@ -123,22 +132,29 @@ class Spec:
         return None
 
 
-def specs(quick: bool) -> list[Spec]:
-    """Every case of the full run (or one per suite for ``--quick``)."""
+def specs(
+    quick: bool,
+    draw: int = 0,
+    scene_names: tuple[str, ...] = SCENES,
+    full_resolution: tuple[str, ...] = FULL_RESOLUTION,
+) -> list[Spec]:
+    """Every case of the full run (or one per suite for ``--quick``): the scene suites on
+    ``scene_names`` (capped) and ``full_resolution`` (crops and frames), the others on their
+    fixed clouds; ``draw`` salts every seed (see :class:`Spec`)."""
     out: list[Spec] = []
-    for scene in SCENES:
-        out += [Spec("crop onto scene", scene, k, CAP) for k in range(2 * len(CROP_SHARES))]
-        out += [Spec("scene onto crop", scene, k, CAP) for k in range(2 * len(REVERSE_SHARES))]
-        out += [Spec("sparse map onto scene", scene, k, CAP) for k in range(4)]
-        out += [Spec("frames", scene, k, CAP) for k in range(2 * len(STEPS))]
-        out += [Spec("jump", scene, k, CAP) for k in range(len(JUMPS_DEG))]
-    for scene in FULL_RESOLUTION:
-        out += [Spec("crop onto scene", scene, k, 0) for k in range(2 * len(CROP_SHARES))]
-        out += [Spec("frames", scene, k, 0) for k in range(len(STEPS))]
-    out += [Spec("scan pair", f"{a}>{b}", k, CAP) for a, b in PAIRS for k in range(6)]
-    out += [Spec("scan turned", scan, k, CAP) for scan in SCANS for k in range(len(TURNS_DEG))]
+    for scene in scene_names:
+        out += [Spec("crop onto scene", scene, k, CAP, draw) for k in range(2 * len(CROP_SHARES))]
+        out += [Spec("scene onto crop", scene, k, CAP, draw) for k in range(2 * len(REVERSE_SHARES))]
+        out += [Spec("sparse map onto scene", scene, k, CAP, draw) for k in range(4)]
+        out += [Spec("frames", scene, k, CAP, draw) for k in range(2 * len(STEPS))]
+        out += [Spec("jump", scene, k, CAP, draw) for k in range(len(JUMPS_DEG))]
+    for scene in full_resolution:
+        out += [Spec("crop onto scene", scene, k, 0, draw) for k in range(2 * len(CROP_SHARES))]
+        out += [Spec("frames", scene, k, 0, draw) for k in range(len(STEPS))]
+    out += [Spec("scan pair", f"{a}>{b}", k, CAP, draw) for a, b in PAIRS for k in range(6)]
+    out += [Spec("scan turned", scan, k, CAP, draw) for scan in SCANS for k in range(len(TURNS_DEG))]
     kinds = (*scenes.UNRELATED, "chef.pcd")
-    out += [Spec("unrelated object", kind, k, CAP) for kind in kinds for k in range(2)]
+    out += [Spec("unrelated object", kind, k, CAP, draw) for kind in kinds for k in range(2)]
     if not quick:
         return out
     first: dict[str, Spec] = {}
@@ -394,10 +410,29 @@ def main(argv: list[str] | None = None) -> int:
     command.add_argument(
         "--suite", action="append", choices=SUITES, help="only this suite (repeatable; default: all)"
     )
+    command.add_argument(
+        "--draw",
+        type=int,
+        default=0,
+        help="fresh cases from the same recipes: every seed salted with this number (default 0: the committed cases)",
+    )
+    command.add_argument(
+        "--scenes",
+        type=lambda text: tuple(text.split(",")),
+        default=SCENES,
+        help=f"comma-separated scenes of the scene suites, at the cap (default {','.join(SCENES)})",
+    )
+    command.add_argument(
+        "--full-resolution",
+        type=lambda text: tuple(filter(None, text.split(","))),
+        default=FULL_RESOLUTION,
+        help=f"comma-separated scenes also run at full resolution ('' for none; default {','.join(FULL_RESOLUTION)})",
+    )
     args = script.parse(command, argv)
     if not (args.data / "real").is_dir() or not (args.data / "bunny").is_dir():
         return script.skip(args, f"no data: {args.data}/real and {args.data}/bunny are needed")
-    todo = [spec for spec in specs(args.quick) if not args.suite or spec.suite in args.suite]
+    every = specs(args.quick, args.draw, args.scenes, args.full_resolution)
+    todo = [spec for spec in every if not args.suite or spec.suite in args.suite]
     records = script.map_cases(args, functools.partial(score, data_dir=args.data), todo, _line)
     if records is None:
         return 0

@@ -83,3 +83,28 @@ def test_counting_queries_counts_query_points_and_resets_on_reading() -> None:
         levels.NearestNeighbors(model).query(data[:10])
         assert queried() == 10
     assert first >= data.shape[0] + model.shape[0]  # at least one full bidirectional pass
+
+
+def test_trustworthy_fresh_draws_salt_every_seed_and_draw_0_is_the_committed_run(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """benchmarks/trustworthy.py --draw N builds other cases from the same recipes; without it
+    the cases (and so docs/trustworthy.md) are the ones every earlier run built."""
+    import os
+    import zlib
+
+    # The script sets OMP_NUM_THREADS when imported: undone after the test.
+    monkeypatch.setenv("OMP_NUM_THREADS", os.environ.get("OMP_NUM_THREADS", "1"))
+    monkeypatch.syspath_prepend(str(ROOT / "benchmarks"))
+    import trustworthy
+
+    committed = trustworthy.specs(quick=False)
+    fresh = trustworthy.specs(quick=False, draw=1)
+    assert len(committed) == len(fresh) == 224
+    first = committed[0]
+    assert first.seed == zlib.crc32(b"crop onto scene/rs1.pcd/0/10000")
+    assert all(a.seed != b.seed for a, b in zip(committed, fresh, strict=True))
+    assert len({spec.seed for spec in fresh}) == len(fresh)
+    others = trustworthy.specs(False, 2, ("chef.pcd",), ())
+    assert {spec.scene for spec in others if spec.suite == "frames"} == {"chef.pcd"}
+    assert not [spec for spec in others if spec.cap == 0]
