@@ -253,7 +253,9 @@ def plane_pairs(sim: Similarity, sets: Sets, bidirectional: bool = True) -> Plan
     keep = _kept(forward_sq[:, 0], sets.model_spacing, sets)
     near = _as_near(forward_sq[keep])
     partners = forward_index[keep]
-    normals = sets.normals[partners.reshape(-1)].reshape(*partners.shape, -1)
+    # Only the averaged partners' normals: a model normal is fitted when first asked for.
+    normals = np.zeros((*partners.shape, model.shape[1]))
+    normals[near] = sets.normals[partners[near]]
     # A partner's normal turned to agree with the nearest's (a fitted normal's sign is arbitrary).
     normals = normals * np.where(np.einsum("nki,ni->nk", normals, normals[:, 0]) < 0, -1.0, 1.0)[..., None]
     weights = near / near.sum(axis=1, keepdims=True)
