@@ -418,17 +418,19 @@ def main(argv: list[str] | None = None) -> int:
     )
     command.add_argument(
         "--scenes",
-        type=lambda text: tuple(text.split(",")),
+        type=_names,
         default=SCENES,
         help=f"comma-separated scenes of the scene suites, at the cap (default {','.join(SCENES)})",
     )
     command.add_argument(
         "--full-resolution",
-        type=lambda text: tuple(filter(None, text.split(","))),
+        type=_names,
         default=FULL_RESOLUTION,
         help=f"comma-separated scenes also run at full resolution ('' for none; default {','.join(FULL_RESOLUTION)})",
     )
     args = script.parse(command, argv)
+    if not args.scenes:
+        command.error("--scenes needs at least one scene file")
     if not (args.data / "real").is_dir() or not (args.data / "bunny").is_dir():
         return script.skip(args, f"no data: {args.data}/real and {args.data}/bunny are needed")
     every = specs(args.quick, args.draw, args.scenes, args.full_resolution)
@@ -452,6 +454,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     write_report(args.out, TITLE, script.command_line(args), summary, (header, rows), records)
     return 0
+
+
+def _names(text: str) -> tuple[str, ...]:
+    """A comma-separated list of cloud file names (empty names dropped)."""
+    return tuple(name.strip() for name in text.split(",") if name.strip())
 
 
 def _line(entry: dict[str, Any]) -> str:

@@ -108,3 +108,6 @@ def test_trustworthy_fresh_draws_salt_every_seed_and_draw_0_is_the_committed_run
     others = trustworthy.specs(False, 2, ("chef.pcd",), ())
     assert {spec.scene for spec in others if spec.suite == "frames"} == {"chef.pcd"}
     assert not [spec for spec in others if spec.cap == 0]
+    with pytest.raises(SystemExit) as refused:  # no scene at all is a usage error, not a traceback
+        trustworthy.main(["--scenes", " , ", "--quick"])
+    assert refused.value.code == 2
