@@ -260,9 +260,8 @@ class _Paired:
     mapped: FloatArray
     forward_sq: FloatArray
     forward_index: np.ndarray
-    columns: np.ndarray | None = None
-    backward_sq: FloatArray | None = None
-    backward_index: np.ndarray | None = None
+    # (model rows, squared distances, data partners' rows); None when only forward is paired.
+    backward: tuple[np.ndarray, FloatArray, np.ndarray] | None = None
 
 
 def _pairing(sim: Similarity, sets: Sets, bidirectional: bool) -> _Paired:
@@ -297,9 +296,7 @@ def _pairing(sim: Similarity, sets: Sets, bidirectional: bool) -> _Paired:
             candidates.model_rows, candidates.backward, split[1], split[0]
         )
         backward_sq, backward_index = nearest_sq[:, None], nearest[:, None]
-    return replace(
-        paired, columns=columns, backward_sq=backward_sq * sim.scale**2, backward_index=backward_index
-    )
+    return replace(paired, backward=(columns, backward_sq * sim.scale**2, backward_index))
 
 
 def plane_pairs(sim: Similarity, sets: Sets, bidirectional: bool = True) -> PlanePairs:
@@ -333,8 +330,8 @@ def _plane_pairs(sim: Similarity, sets: Sets, paired: _Paired, rows: np.ndarray 
     plane_normals = [mean_normal]
     identities = [paired.forward_rows[keep]]
     backward_kept, sampled_columns = np.zeros(0), 0
-    if paired.columns is not None and paired.backward_sq is not None and paired.backward_index is not None:
-        columns, backward_sq = paired.columns, paired.backward_sq
+    if paired.backward is not None:
+        columns, backward_sq, backward_index = paired.backward
         sampled_columns = int(columns.shape[0])
         if rows is None:
             keep_back = _kept(backward_sq[:, 0], sets.data_spacing * sim.scale, sets)
@@ -342,7 +339,7 @@ def _plane_pairs(sim: Similarity, sets: Sets, paired: _Paired, rows: np.ndarray 
             keep_back = np.isin(-1 - columns, rows)
         near = _as_near(backward_sq[keep_back])
         weights = near / near.sum(axis=1, keepdims=True)
-        sources.append(np.einsum("nk,nki->ni", weights, sim.apply(data[paired.backward_index[keep_back]])))
+        sources.append(np.einsum("nk,nki->ni", weights, sim.apply(data[backward_index[keep_back]])))
         targets.append(model[columns[keep_back]])
         plane_normals.append(sets.normals[columns[keep_back]])
         backward_kept = backward_sq[keep_back, 0]
