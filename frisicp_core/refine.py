@@ -38,7 +38,8 @@ squared residual; :func:`_tried`), not when the new pose's own trimmed RMS is lo
 poses keep slightly different rows, and the borderline pairs entering or leaving moved the RMS
 by more than a step near the optimum does, so the steps stopped wherever that jitter favoured
 the current pose (``benchmarks/noise_growth.py``'s noisier rs1 frames: the second of step 0.20
-4.4e-4 off its truth before, 1.7e-4 now; the second of step 0.30 3.8e-4 -> 1.9e-4). Measured with ``benchmarks/trustworthy.py`` against the previous core on
+4.4e-4 off its truth before, 1.7e-4 now; the second of step 0.30 3.8e-4 -> 1.9e-4).
+Measured with ``benchmarks/trustworthy.py`` against the previous core on
 this machine (2026-12-03; development cases, ``--draw 1``, ``--draw 2`` on other clouds): 0
 wrong-and-reliable in all; reliable frames within 3 sigma (rot / scale / trans) 17/18/17 ->
 18/18/18 of 18 capped and 5/6/4 -> 6/6/5 of 6 at full resolution (``--draw 1``: 4/4/3 -> 4/4/4
