@@ -12,7 +12,10 @@ uncertainty (an answer the data no longer determine states the prior instead,
 whose sigma grew at least 1.5x in each component (rotation / scale / translation, as
 ``trustworthy.py`` reads them), the median growth, the growth of the median error (does the
 error grow as the sigma does?), and how many noisy results lie within 3 of their own sigmas (the
-calibration, all noisy results with a local uncertainty, reliable or not).
+calibration, all noisy results with a local uncertainty, reliable or not). Also the median growth
+of the fit's residual RMS (``result.rms``), from which the sigmas are estimated: the added noise
+grows it much where it dominates the data's own noise and sampling, little where a real sensor's
+noise is already of its size.
 
 Usage: python benchmarks/noise_growth.py [--jobs 2] [--data DIR] [--out docs/noise_growth.md]
        python benchmarks/noise_growth.py --quick   # one case of each suite -> build/
@@ -92,6 +95,8 @@ def measure(spec: Spec, data_dir: Path) -> dict[str, Any]:
                 abs(float(np.log(result.similarity.scale / truth.scale))),
                 errors.translation * diagonal,
             ],
+            # The fit's residuals (model units): what the sigmas are estimated from.
+            "rms": result.rms,
             "reason": result.reason,
         }
     return entry
@@ -105,6 +110,7 @@ def summarise(records: list[dict[str, Any]]) -> tuple[list[str], list[list[objec
         f"sigma grew >= {GROWTH}x (rot / scale / trans)",
         "median sigma growth (rot / scale / trans)",
         "median error growth (rot / scale / trans)",
+        "median residual growth",
         "noisier within 3 sigma (rot / scale / trans)",
     ]
     rows: list[list[object]] = []
@@ -128,6 +134,7 @@ def summarise(records: list[dict[str, Any]]) -> tuple[list[str], list[list[objec
             else "-"
             for k in range(3)
         )
+        residuals = [e["noisier"]["rms"] / e["built"]["rms"] for e in both]
         within = [e["noisier"]["within_3_sigma"] for e in both]
         calibrated = " / ".join(str(sum(w[k] for w in within)) for k in range(3)) + f" of {len(within)}"
         rows.append(
@@ -138,6 +145,7 @@ def summarise(records: list[dict[str, Any]]) -> tuple[list[str], list[list[objec
                 grown,
                 medians,
                 errors,
+                f"{statistics.median(residuals):.2f}" if both else "-",
                 calibrated,
             ]
         )
