@@ -38,7 +38,7 @@ from __future__ import annotations
 import functools
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from numpy.typing import ArrayLike
@@ -48,7 +48,7 @@ from .config import Initialization, Method, RegistrationConfig
 from .fit import Fit
 from .global_search import feature_starts
 from .hypotheses import beyond_guess, covariance_scale_bounds, initial_hypotheses
-from .levels import Pairs, Pyramid, level_motion
+from .levels import Level, Pairs, Pyramid, level_motion
 from .points import as_point_set, centroid, check_same_dimension, rms_radius, spread
 from .poses import PoseBatch
 from .prepared import PreparedModel
@@ -284,13 +284,19 @@ def _register(
         reports, first, accelerate_from = [report], 1, ACCELERATE_FROM_TRACKING
     elif len(finalists) > 1 or (searching and last > 0):
         near_share = (lambda pose: levels[0].fit(pose).best_near_share) if bidirectional else None
-        # Every comparison runs its poses on the first dense level, judged by the same fit check.
+        # Every comparison runs its poses on the first dense level, judged by the same fit check;
+        # poses that pass it but not clearly are finished by the polish's steps when nothing
+        # fits clearly (compare_finalists).
+        finish = (
+            _Finisher(levels[last], model, config, model_radius) if bidirectional and config.polish else None
+        )
         on_first_level = functools.partial(
             compare_finalists,
             solver,
             levels[0],
             relative_motion=level_motion(config, 0, last),
             near_share=near_share,
+            finish=finish,
         )
         (sim, report, pairs), runners_up = on_first_level(finalists)
         reports, first = [report], 1
@@ -313,7 +319,7 @@ def _register(
                 reports = [report]
             if (
                 near_share is not None
-                and not near_share(sim) <= MAX_NEAR_SHARE
+                and (not near_share(sim) <= MAX_NEAR_SHARE or (finish is not None and finish.made(sim)))
                 and not solver.deadline.passed()
             ):
                 # The search matches the data's local shapes onto the model's: it finds a crop
@@ -321,7 +327,10 @@ def _register(
                 # scene in its crop (most of the scene's have none). When its answer does not
                 # fit, the same search the other way, the model's shapes onto the data's, has
                 # its say; its poses, inverted, join. Its own generator leaves every later draw
-                # as it was, so an answer that fits is the one it always was.
+                # as it was, so an answer that fits is the one it always was. An answer that fits
+                # only once finished (compare_finalists) is no sign the search found its place:
+                # the whole dragon onto a 10 % crop of it ended shrunk 7x into the crop, 95
+                # degrees off; the swapped search finds the truth, which then fits better.
                 swapped = feature_starts(
                     model_set,
                     PreparedModel.of(data_set),
@@ -506,6 +515,43 @@ class _Refiner:
             )
         del self.solver.history[history:]
         return sim, pairs
+
+
+@dataclass
+class _Finisher:
+    """The polish's point-to-plane steps on the full sets (``final``, the last level), as a pose
+    -> pose function: what :func:`compare_finalists` finishes crawling ICP poses with. Remembers
+    the poses it returned (:meth:`made`)."""
+
+    final: Level
+    model: PreparedModel
+    config: RegistrationConfig
+    model_radius: float
+    returned: list[Similarity] = field(default_factory=list)
+
+    def __call__(self, pose: Similarity) -> Similarity:
+        final, config = self.final, self.config
+        assert final.data_tree is not None
+        sets = Sets(
+            final.data_tree,
+            final.model_tree,
+            final.data_spacing,
+            final.model_spacing,
+            self.model.normals(final.model_tree),
+            overlap=config.overlap,
+            max_distance=config.max_distance,
+        )
+        tolerance = config.criteria.relative_motion * self.model_radius
+        noise_floor = config.criteria.noise_floor
+        finished = polish(
+            pose, sets, centroid(final.data), tolerance=tolerance, noise_floor=noise_floor
+        ).similarity
+        self.returned.append(finished)
+        return finished
+
+    def made(self, pose: Similarity) -> bool:
+        """Whether ``pose`` is one this finisher returned."""
+        return any(pose is finished for finished in self.returned)
 
 
 def _covering(pairs: Pairs) -> bool:

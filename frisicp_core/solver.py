@@ -472,6 +472,7 @@ def compare_finalists(
     relative_motion: float,
     margin: float = 0.15,
     near_share: Callable[[Similarity], float] | None = None,
+    finish: Callable[[Similarity], Similarity] | None = None,
 ) -> tuple[tuple[Similarity, LevelReport, Pairs], list[Similarity]]:
     """Run every finalist of the screening on the first dense level (the coarsest points against
     the full sets) and keep the one that ends with the lowest merit: with exact nearest
@@ -486,6 +487,14 @@ def compare_finalists(
     times the residuals, which the merit prefers and the fit check refuses. Overruling the
     objective takes a clear fit: a pose that merely passes the check may be another misfit.
 
+    With ``finish`` as well (the point-to-plane steps of :mod:`frisicp_core.refine` on this
+    level's full trees): when no pose fits clearly, those that pass the check are finished and
+    judged again. Point-to-point ICP crawls along a crop's surfaces and stops where a step moves
+    the data little or the trimmed merit ticks up, short of its minimum: on a 10 % crop of the
+    rs1 room a descriptor start 5 degrees off the truth stopped 4.4 degrees off, 29 % near
+    misses (the truth: 13 %), and a wrong pose swollen over the room won; finished, it ends
+    0.4 degrees off at 13 %.
+
     Also returns the others' poses there whose merits are within ``margin`` of the winner's,
     best first (runners-up: possible competitors)."""
     outcomes = []
@@ -496,11 +505,25 @@ def compare_finalists(
         del solver.history[history_before:]
     outcomes.sort(key=lambda item: item[0])
     if near_share is not None and not near_share(outcomes[0][1][0]) <= MAX_NEAR_SHARE:
-        clear = next(
-            (k for k in range(1, len(outcomes)) if near_share(outcomes[k][1][0]) <= CLEAR_NEAR_SHARE), None
-        )
+        shares = [near_share(outcome[0]) for _, outcome, _ in outcomes]
+        clear = next((k for k in range(1, len(outcomes)) if shares[k] <= CLEAR_NEAR_SHARE), None)
+        if clear is None and finish is not None:
+            finished = []
+            for k in range(1, len(outcomes)):
+                if shares[k] <= MAX_NEAR_SHARE:
+                    _, (pose, report, _), history = outcomes[k]
+                    pose = finish(pose)
+                    pairs = solver.correspond(level, PoseBatch.of([pose]))
+                    outcomes[k] = (float(pairs.merit[0]), (pose, report, pairs), history)
+                    finished.append(k)
+            clear = min(
+                (k for k in finished if near_share(outcomes[k][1][0]) <= CLEAR_NEAR_SHARE),
+                key=lambda k: outcomes[k][0],
+                default=None,
+            )
         if clear is not None:
             outcomes.insert(0, outcomes.pop(clear))
     chosen, best, history = outcomes[0]
     solver.history.extend(history)
-    return best, [outcome[0] for merit, outcome, _ in outcomes[1:] if abs(merit - chosen) <= margin * chosen]
+    runners_up = sorted(outcomes[1:], key=lambda item: item[0])
+    return best, [outcome[0] for merit, outcome, _ in runners_up if abs(merit - chosen) <= margin * chosen]
