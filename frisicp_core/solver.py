@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from dataclasses import replace
 
 import numpy as np
 
@@ -510,10 +511,11 @@ def compare_finalists(
         if clear is None and finish is not None:
             finished = []
             for k in range(1, len(outcomes)):
-                if shares[k] <= MAX_NEAR_SHARE:
+                if shares[k] <= MAX_NEAR_SHARE and not solver.deadline.passed():
                     _, (pose, report, _), history = outcomes[k]
                     pose = finish(pose)
                     pairs = solver.correspond(level, PoseBatch.of([pose]))
+                    report = replace(report, rms=pairs.rms()[0])
                     outcomes[k] = (float(pairs.merit[0]), (pose, report, pairs), history)
                     finished.append(k)
             clear = min(
