@@ -377,16 +377,7 @@ def _register(
         if last > 0:
             reports.append(LevelReport(final.data.shape[0], final.model.shape[0], 0, False, rms))
     if polishing:
-        assert final.data_tree is not None
-        sets = Sets(
-            final.data_tree,
-            final.model_tree,
-            final.data_spacing,
-            final.model_spacing,
-            model.normals(final.model_tree),
-            overlap=config.overlap,
-            max_distance=config.max_distance,
-        )
+        sets = _polish_sets(final, model, config)
         polished = polish(
             sim,
             sets,
@@ -531,16 +522,7 @@ class _Finisher:
 
     def __call__(self, pose: Similarity) -> Similarity:
         final, config = self.final, self.config
-        assert final.data_tree is not None
-        sets = Sets(
-            final.data_tree,
-            final.model_tree,
-            final.data_spacing,
-            final.model_spacing,
-            self.model.normals(final.model_tree),
-            overlap=config.overlap,
-            max_distance=config.max_distance,
-        )
+        sets = _polish_sets(final, self.model, config)
         tolerance = config.criteria.relative_motion * self.model_radius
         noise_floor = config.criteria.noise_floor
         finished = polish(
@@ -552,6 +534,20 @@ class _Finisher:
     def made(self, pose: Similarity) -> bool:
         """Whether ``pose`` is one this finisher returned."""
         return any(pose is finished for finished in self.returned)
+
+
+def _polish_sets(final: Level, model: PreparedModel, config: RegistrationConfig) -> Sets:
+    """The full sets (``final``, the last level) as the polish sees them, with the model's normals."""
+    assert final.data_tree is not None
+    return Sets(
+        final.data_tree,
+        final.model_tree,
+        final.data_spacing,
+        final.model_spacing,
+        model.normals(final.model_tree),
+        overlap=config.overlap,
+        max_distance=config.max_distance,
+    )
 
 
 def _covering(pairs: Pairs) -> bool:
