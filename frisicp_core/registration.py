@@ -60,7 +60,7 @@ from .solver import ACCELERATE_FROM, ACCELERATE_FROM_TRACKING, Solver, compare_f
 from .threads import one_thread
 from .uncertainty import Uncertainty
 from .units import Units, magnitude_exponent
-from .verdict import MAX_NEAR_SHARE, SCALE_RANGE, judge
+from .verdict import CLEAR_NEAR_SHARE, MAX_NEAR_SHARE, SCALE_RANGE, judge
 from .window import cut
 
 # Most passes a probe of the answer (frisicp_core.ambiguity) takes to settle on the screening
@@ -573,9 +573,12 @@ def _probe(
     margin (best first), and a distinct pose that fits clearly better (with its final
     pairs), if any: when the answer passes the fit check, a clearly lower merit that does not
     is no better (:func:`frisicp_core.solver.compare_finalists`: reached by swelling over more of
-    a cloud). A competitor is judged by the merit alone: an answer some rival pose matches
-    about as well is doubtful, whether or not the rival fits (a wrong answer that passes the
-    fit check had rivals that did not, on 5-10 % crops of the development scenes). The
+    a cloud). A competitor is judged by the merit alone, whether or not the rival fits (a wrong
+    answer that passes the fit check had rivals that did not, on 5-10 % crops of the development
+    scenes), unless the answer fits clearly (:data:`~frisicp_core.verdict.CLEAR_NEAR_SHARE`) and
+    the rival fails the check: a crop swollen over its scene, 46-114 degrees off, matched the
+    merit of right answers on 10-20 % crops once the descriptor search's agreement graph
+    (:mod:`frisicp_core.compatibility`) put such poses among the runners-up. The
     screening's ``runners_up`` are run down too. (Clouds that cover each other
     are probed as well: two views of a dome-shaped depth frame overlap all but completely, and
     still turn a few degrees either way about the sensor at the same merit.)"""
@@ -586,6 +589,7 @@ def _probe(
         return level.fit(pose).best_near_share <= MAX_NEAR_SHARE
 
     answer_fits = functools.cache(lambda: fits(sim))
+    answer_fits_clearly = functools.cache(lambda: level.fit(sim).best_near_share <= CLEAR_NEAR_SHARE)
     centre = centroid(data)
     diagonal = float(np.linalg.norm(model.max(axis=0) - model.min(axis=0)))
     starts = [sim, *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data))]
@@ -614,7 +618,9 @@ def _probe(
             continue
         if ratio < 1.0 - AMBIGUITY_MARGIN and (fits(refined) or not answer_fits()):
             return [], (refined, pairs)
-        if abs(ratio - 1.0) <= AMBIGUITY_MARGIN:
+        # A rival that fails the fit check matches the merit of an answer that fits clearly only by
+        # swelling over more of a cloud (a crop over its scene): no competitor.
+        if abs(ratio - 1.0) <= AMBIGUITY_MARGIN and (fits(refined) or not answer_fits_clearly()):
             found.append(Competitor(refined, ratio, apart))
         if len(kept) == _PROBE_REFINED:
             break
