@@ -32,7 +32,7 @@ def registered(
 ) -> tuple[RegistrationResult, PoseErrors]:
     """benchmarks/trustworthy.py's case ``suite``/``scene_file``/``index`` (both clouds capped at
     ``cap`` points, 0: full resolution; its seed, salted by ``draw``) registered, and its errors."""
-    shared_file(f"real/{scene_file}")
+    shared_file(f"bunny/{scene_file}" if scene_file.startswith("bun") else f"real/{scene_file}")
     salt = f"/draw {draw}" if draw else ""
     rng = np.random.default_rng(zlib.crc32(f"{suite}/{scene_file}/{index}/{cap}{salt}".encode()))
     scene = scenes.object_cloud(SHARED_DATA, scene_file)
