@@ -588,8 +588,8 @@ def _probe(
     def fits(pose: Similarity) -> bool:
         return level.fit(pose).best_near_share <= MAX_NEAR_SHARE
 
-    answer_fits = functools.cache(lambda: fits(sim))
-    answer_fits_clearly = functools.cache(lambda: level.fit(sim).best_near_share <= CLEAR_NEAR_SHARE)
+    # The answer's near-miss share, fitted once for both of its tests below.
+    answer_share = functools.cache(lambda: level.fit(sim).best_near_share)
     centre = centroid(data)
     diagonal = float(np.linalg.norm(model.max(axis=0) - model.min(axis=0)))
     starts = [sim, *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data))]
@@ -616,11 +616,11 @@ def _probe(
         ratio = float(pairs.merit[0]) / merit
         if apart <= 1.0 or not np.isfinite(ratio):
             continue
-        if ratio < 1.0 - AMBIGUITY_MARGIN and (fits(refined) or not answer_fits()):
+        if ratio < 1.0 - AMBIGUITY_MARGIN and (fits(refined) or not answer_share() <= MAX_NEAR_SHARE):
             return [], (refined, pairs)
         # A rival that fails the fit check matches the merit of an answer that fits clearly only by
         # swelling over more of a cloud (a crop over its scene): no competitor.
-        if abs(ratio - 1.0) <= AMBIGUITY_MARGIN and (fits(refined) or not answer_fits_clearly()):
+        if abs(ratio - 1.0) <= AMBIGUITY_MARGIN and (fits(refined) or not answer_share() <= CLEAR_NEAR_SHARE):
             found.append(Competitor(refined, ratio, apart))
         if len(kept) == _PROBE_REFINED:
             break
