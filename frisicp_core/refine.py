@@ -46,6 +46,20 @@ wrong-and-reliable in all; reliable frames within 3 sigma (rot / scale / trans) 
 of 6; ``--draw 2``: 9 -> 10 reliable frames, all within); ``benchmarks/resting_region.py``:
 capped frames' starts not pulled back 32 -> 12 of 108 (max 3.9 -> 2.7 sigma). Successes the same
 but for one fresh sparse map now refused (3 sigma of its rotation just over 1 degree).
+When the full step does not fit, half of it, twice and four times it are tried, and the best
+that fits is taken (:data:`_OTHER_LENGTHS`). Re-paired, the objective is flatter than the
+Hessian of the fixed pairs says (the pairs slide along the surfaces) and jitters by a few tenths
+of a percent as partners change: on two full-resolution rs1 frames (``trustworthy.py``'s
+"frames step 0.10") the step pointed at a minimum 0.25 degrees away that fits the same rows 3 %
+better (cosine 0.96 in the Hessian's metric) but reached a quarter of the way, where re-pairing
+fitted the rows worse; so did half of it, and the steps stopped, 4 sigma off. Twice and four
+times the step reach it (0.25 -> 0.08 degrees, 0.22 -> 0.01 % in scale). Measured with
+``benchmarks/trustworthy.py`` (2026-12-04) against the previous rule: 0 wrong-and-reliable;
+reliable results within 3 sigma 150/149/149 -> 151/150/150 of 151 (development cases) and
+147/147/148 -> 149/148/148 of 150 (``--draw 1``); successes the same in number (development: one
+20 % bunny crop turned refused at 3 sigma of the scale 1.0 %, another turned reliable).
+Trying longer steps also when the full one fits was tried and not kept: on 18 full-resolution
+rs1 frames it moved 7 answers' scale farther from the truth and 6 nearer.
 Tried and not kept: all five nearest whatever their distance (a scale bias on the real scan
 pairs: on a clean, sparse surface the farther neighbours' tangent planes curve away), and the
 partners' mean point and mean normal (more accurate on the frames, but fewer right crops
@@ -81,6 +95,8 @@ _SETTLED = 0.1
 _CONVERGED = 3.0
 # Levenberg-Marquardt damping relative to the mean diagonal of H.
 _DAMPING = 1e-9
+# The lengths, in Gauss-Newton steps, tried when the full step does not fit (see polish).
+_OTHER_LENGTHS = (0.5, 2.0, 4.0)
 
 
 class ModelNormals:
@@ -445,16 +461,23 @@ def polish(
         if taken == steps and not final_pass:
             sim = candidate
             break
-        trial, fits = _tried(candidate, sets, bidirectional, pairs)
+        trial, fits, _ = _tried(candidate, sets, bidirectional, pairs)
         if not fits:
-            # Re-paired, the step fits the rows kept now worse (a linearisation too far from
-            # the pairs it was solved on): half of it, else stay, so the error never increases.
-            # Neither lowers it: the pose sits where re-pairing jitters, which is converged.
-            candidate = perturb(sim, 0.5 * delta, centre)
-            trial, fits = _tried(candidate, sets, bidirectional, pairs)
-            if not fits:
+            # Re-paired, the step fits the rows kept now worse: a linearisation too far from the
+            # pairs it was solved on, or one too short to beat the jitter of re-pairing (module
+            # doc). The best of the other lengths that fits, else stay, so the error never
+            # increases. None lowers it: the pose sits where re-pairing jitters, which is converged.
+            others = [perturb(sim, factor * delta, centre) for factor in _OTHER_LENGTHS]
+            fitting = [
+                (value, other, trial)
+                for other in others
+                for trial, fits, value in [_tried(other, sets, bidirectional, pairs)]
+                if fits
+            ]
+            if not fitting:
                 converged = True
                 break
+            _, candidate, trial = min(fitting, key=lambda item: item[0])
         sim, pairs = candidate, trial
         history.append(pairs.plane_rms)
     return Polished(sim, pairs, taken, converged, tuple(history))
@@ -462,10 +485,10 @@ def polish(
 
 def _tried(
     candidate: Similarity, sets: Sets, bidirectional: bool, current: PlanePairs
-) -> tuple[PlanePairs, bool]:
-    """``candidate``'s kept pairs, and whether it fits ``current``'s kept rows no worse than the
-    current pose does (mean squared point-to-plane residual over the same rows, each re-paired
-    at ``candidate``).
+) -> tuple[PlanePairs, bool, float]:
+    """``candidate``'s kept pairs, whether it fits ``current``'s kept rows no worse than the
+    current pose does, and how well: the mean squared point-to-plane residual over the same rows,
+    each re-paired at ``candidate``.
 
     The same rows, not each pose's own kept ones: the trimming keeps a slightly different set at
     every pose, and a few borderline pairs entering or leaving it move the RMS by more than a
@@ -473,8 +496,8 @@ def _tried(
     that jitter happened to favour the current pose (module doc)."""
     paired = _pairing(candidate, sets, bidirectional)
     same_rows = _plane_pairs(candidate, sets, paired, current.rows)
-    fits = bool(np.mean(same_rows.residuals**2) <= np.mean(current.residuals**2))
-    return _plane_pairs(candidate, sets, paired), fits
+    value = float(np.mean(same_rows.residuals**2))
+    return _plane_pairs(candidate, sets, paired), value <= float(np.mean(current.residuals**2)), value
 
 
 def difference(a: Similarity, b: Similarity, centroid: FloatArray) -> FloatArray:
