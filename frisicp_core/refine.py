@@ -447,9 +447,11 @@ def polish(
         # keep the steps jittering at about that size. Steps continue while they are larger
         # than a third of it; a last step within sqrt(3) of it counts as converged (the naive
         # covariance is itself two to three times too small, see uncertainty_of).
+        # The rows' mean squared residual now: the noise floor's variance, and what a step must not
+        # exceed on the same rows (_tried).
+        variance = float(np.mean(pairs.residuals**2))
         significance = np.inf
         if noise_floor:
-            variance = float(np.mean(pairs.residuals**2))
             significance = (
                 float(delta @ hessian @ delta) / (delta.shape[0] * variance) if variance > 0 else 0.0
             )
@@ -461,19 +463,19 @@ def polish(
         if taken == steps and not final_pass:
             sim = candidate
             break
-        trial, fits, _ = _tried(candidate, sets, bidirectional, pairs)
-        if not fits:
+        trial, fit = _tried(candidate, sets, bidirectional, pairs)
+        if not fit <= variance:
             # Re-paired, the step fits the rows kept now worse: a linearisation too far from the
             # pairs it was solved on, or one too short to beat the jitter of re-pairing (module
             # doc). The best of the other lengths that fits, else stay, so the error never
             # increases. None lowers it: the pose sits where re-pairing jitters, which is converged.
             others = [perturb(sim, factor * delta, centre) for factor in _OTHER_LENGTHS]
-            fitting = [
-                (value, other, trial)
+            tried = [
+                (fit, other, trial)
                 for other in others
-                for trial, fits, value in [_tried(other, sets, bidirectional, pairs)]
-                if fits
+                for trial, fit in [_tried(other, sets, bidirectional, pairs)]
             ]
+            fitting = [item for item in tried if item[0] <= variance]
             if not fitting:
                 converged = True
                 break
@@ -485,10 +487,10 @@ def polish(
 
 def _tried(
     candidate: Similarity, sets: Sets, bidirectional: bool, current: PlanePairs
-) -> tuple[PlanePairs, bool, float]:
-    """``candidate``'s kept pairs, whether it fits ``current``'s kept rows no worse than the
-    current pose does, and how well: the mean squared point-to-plane residual over the same rows,
-    each re-paired at ``candidate``.
+) -> tuple[PlanePairs, float]:
+    """``candidate``'s kept pairs, and how well it fits ``current``'s kept rows: their mean
+    squared point-to-plane residual, each row re-paired at ``candidate`` (a step is kept when this
+    is no worse than the current pose's own).
 
     The same rows, not each pose's own kept ones: the trimming keeps a slightly different set at
     every pose, and a few borderline pairs entering or leaving it move the RMS by more than a
@@ -496,8 +498,7 @@ def _tried(
     that jitter happened to favour the current pose (module doc)."""
     paired = _pairing(candidate, sets, bidirectional)
     same_rows = _plane_pairs(candidate, sets, paired, current.rows)
-    value = float(np.mean(same_rows.residuals**2))
-    return _plane_pairs(candidate, sets, paired), value <= float(np.mean(current.residuals**2)), value
+    return _plane_pairs(candidate, sets, paired), float(np.mean(same_rows.residuals**2))
 
 
 def difference(a: Similarity, b: Similarity, centroid: FloatArray) -> FloatArray:
