@@ -52,14 +52,17 @@ Hessian of the fixed pairs says (the pairs slide along the surfaces) and jitters
 of a percent as partners change: on two full-resolution rs1 frames (``trustworthy.py``'s
 "frames step 0.10") the step pointed at a minimum 0.25 degrees away that fits the same rows 3 %
 better (cosine 0.96 in the Hessian's metric) but reached a quarter of the way, where re-pairing
-fitted the rows worse; so did half of it, and the steps stopped, 4 sigma off. Twice and four
+fitted the rows worse; so did half of it, and the steps stopped, 4 sigma off (the 3 %, the
+cosine and the quarter from a one-off diagnosis of that case, not a script in the repository;
+test/core/test_polish_frames.py checks where it comes to rest). Twice and four
 times the step reach it (0.25 -> 0.08 degrees, 0.22 -> 0.01 % in scale). Measured with
 ``benchmarks/trustworthy.py`` (2026-12-04) against the previous rule: 0 wrong-and-reliable;
 reliable results within 3 sigma 150/149/149 -> 151/150/150 of 151 (development cases) and
 147/147/148 -> 149/148/148 of 150 (``--draw 1``); successes the same in number (development: one
 20 % bunny crop turned refused at 3 sigma of the scale 1.0 %, another turned reliable).
 Trying longer steps also when the full one fits was tried and not kept: on 18 full-resolution
-rs1 frames it moved 7 answers' scale farther from the truth and 6 nearer.
+rs1 frames (``trustworthy.py``'s, draws 0, 1 and 3; a one-off diagnosis) it moved 7 answers'
+scale farther from the truth and 6 nearer.
 Tried and not kept: all five nearest whatever their distance (a scale bias on the real scan
 pairs: on a clean, sparse surface the farther neighbours' tangent planes curve away), and the
 partners' mean point and mean normal (more accurate on the frames, but fewer right crops
