@@ -260,6 +260,9 @@ class _ParentNormals(ModelNormals):
     def __getitem__(self, index: np.ndarray) -> FloatArray:
         return self._parent_normals[self._rows[index]]
 
+    def curvatures(self, index: np.ndarray) -> FloatArray:
+        return self._parent_normals.curvatures(self._rows[index])
+
 
 @dataclass(frozen=True)
 class Thinning:

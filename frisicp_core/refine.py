@@ -33,6 +33,34 @@ development cases and on fresh draws (``--draw 1``): the capped frames' mean rot
 (over the per-case errors of its JSON reports) 0.16 -> 0.10 and 0.18 -> 0.12 degrees, their
 reliable results within 3 sigma in translation 14 -> 17 and 15 -> 18 of 18; every suite's
 successes and the wrong-and-reliable count (0) unchanged.
+Each residual is measured against the surface's local quadric, not its tangent plane: the
+height of the surface above the partner's tangent plane where the other point lies over it,
+q^T K q / 2 with K the curvature fitted to the normal's patch
+(:func:`~frisicp_core.planes.curvature_coefficients`; Mitra, Gelfand, Pottmann and Guibas 2004,
+second-order approximants of a surface's squared distance), is subtracted. On a curved surface
+the other cloud's points lie off the tangent plane by about kappa d^2 / 2 at a distance d along
+it; the backward rows compare a model point's plane with its data partners a data spacing away,
+so two clean samplings of the demo's bumpy surface registered with a scale bias of +0.07 % at
+5,000 data points (4 of their sigmas) and +0.02 % at 20,000, with no noise and whatever the
+model's density; with the quadric, within +-0.007 % and +-0.002 % (test/core/test_curvature_bias.py).
+Noise in the tangential offset adds trace(K) sigma^2 / 2 to the expected height, which is taken
+off (:func:`~frisicp_core.planes.surface_heights`; sigma^2 per axis from the forward pairs'
+plain residuals): without it the noisy crops of ``trustworthy.py`` came out further off in scale
+than with the tangent planes (median 0.072 -> 0.133 %), with it 0.083 %. Measured with
+``trustworthy.py`` against the tangent planes (2026-12-04, development cases): 0
+wrong-and-reliable, successes the same in number (a sparse map turned reliable, a 20 % bunny
+crop at full resolution refused at 3 sigma of rotation), reliable within 3 sigma 151/150/150 ->
+150/151/150 of 151; median scale errors of the real scan pairs 0.035 -> 0.009 %, turned scans
+0.084 -> 0.071 %, scenes onto crops 0.065 -> 0.032 %, capped frames 0.080 -> 0.061 %; crops
+onto scenes 0.072 -> 0.083 %, jumps 0.022 -> 0.034 %, sparse maps 0.079 -> 0.087 %. Fresh cases
+(``--draw 1``): 0 wrong-and-reliable, successes the same in number, reliable within 3 sigma
+149/148/148 -> 148/147/149 of 150 (two real bunny scans turned onto the reconstruction, 0.3 %
+off in scale before and after, now just outside). Other clouds (``--draw 2``: chef, dragon2,
+bunny_part2): 0 wrong-and-reliable, every reliable result within 3 sigma, successes 52 -> 51.
+``make demo`` (2,500-point clouds of the bumpy surface, noise 0.005): median scale error
+0.147 -> 0.010 %. The cost: fitting the curvature to each normal's patch (about 18 ms of a warm
+registration of the bunny) and the heights in every pass; ``benchmarks/speed_ab.py`` against
+the tangent planes, 1.08x cold and 1.35x warm on the bunny (docs/speed_ab_quadric*.md).
 A step is kept when, re-paired, it fits the rows the current pose keeps no worse (their mean
 squared residual; :func:`_tried`), not when the new pose's own trimmed RMS is lower: the two
 poses keep slightly different rows, and the borderline pairs entering or leaving moved the RMS
@@ -67,9 +95,9 @@ Tried and not kept: all five nearest whatever their distance (a scale bias on th
 pairs: on a clean, sparse surface the farther neighbours' tangent planes curve away), and the
 partners' mean point and mean normal (more accurate on the frames, but fewer right crops
 and turned scans within their 3 sigma of scale: the two clouds' means shrink their surfaces by
-different amounts). On sparse objects the mean still shifts the scale: the chef figure's frames
-(about 1,000 points, none of them reliable) ended 0.5-1 % off in scale, where the nearest alone
-ended 0.01-0.9 %.
+different amounts). On sparse objects the mean still shifted the scale (with the tangent
+planes, before the quadric above): the chef figure's frames (about 1,000 points, none of them
+reliable) ended 0.5-1 % off in scale, where the nearest alone ended 0.01-0.9 %.
 """
 
 from __future__ import annotations
@@ -80,7 +108,14 @@ import numpy as np
 
 from .kdtree import NearestNeighbors
 from .overlap import select_pairs
-from .planes import centred_patches, least_variance, scatter
+from .planes import (
+    centred_patches,
+    curvature_coefficients,
+    least_variance,
+    packed_size,
+    scatter,
+    surface_heights,
+)
 from .rotations import exp_rotation, log_rotation, vector_size
 from .similarity import FloatArray, Similarity
 from .uncertainty import NORMAL_NEIGHBOURS, Uncertainty, estimate_uncertainty, pair_jacobians
@@ -104,21 +139,37 @@ _OTHER_LENGTHS = (0.5, 2.0, 4.0)
 
 class ModelNormals:
     """Unit normals of the model's points (:mod:`frisicp_core.planes`: the least-variance
-    direction of the :data:`NORMAL_NEIGHBOURS` nearest points), computed when first asked for
-    and kept."""
+    direction of the :data:`NORMAL_NEIGHBOURS` nearest points) and the curvature of the surface
+    there (:func:`~frisicp_core.planes.curvature_coefficients`, from the same points), computed
+    when first asked for and kept."""
 
     def __init__(self, tree: NearestNeighbors, neighbours: int = NORMAL_NEIGHBOURS) -> None:
         self.tree = tree
         self.neighbours = neighbours
         self._normals = np.full(tree.points.shape, np.nan)
+        # Packed, in single precision: a height's correction is small beside the noise, and the
+        # table spans a big map's every point (6 entries: 24 bytes a point, 48 in double).
+        self._curvatures = np.zeros((tree.points.shape[0], packed_size(tree.points.shape[1])), np.float32)
 
     def __getitem__(self, index: np.ndarray) -> FloatArray:
         missing = np.unique(index[np.isnan(self._normals[index, 0])])
         if missing.size:
-            _, neighbours = self.tree.query_k(self.tree.points[missing], self.neighbours)
-            _, centred = centred_patches(self.tree.points, neighbours)
-            _, self._normals[missing] = least_variance(scatter(centred))
+            points = self.tree.points
+            _, neighbours = self.tree.query_k(points[missing], self.neighbours)
+            means, centred = centred_patches(points, neighbours)
+            _, normals = least_variance(scatter(centred))
+            self._normals[missing] = normals
+            # The patches about their own points (the fit's origin), from the centred ones.
+            centred += (means - points[missing])[:, None, :]
+            self._curvatures[missing] = curvature_coefficients(centred, normals)
         values: FloatArray = self._normals[index]
+        return values
+
+    def curvatures(self, index: np.ndarray) -> FloatArray:
+        """The packed curvature matrices at the points ``index``
+        (:func:`~frisicp_core.planes.curvature_coefficients`; heights along the stored normals)."""
+        self[index]
+        values: FloatArray = self._curvatures[index]
         return values
 
 
@@ -338,11 +389,20 @@ def _plane_pairs(sim: Similarity, sets: Sets, paired: _Paired, rows: np.ndarray 
     # Only the averaged partners' normals: a model normal is fitted when first asked for.
     normals = np.zeros((*partners.shape, model.shape[1]))
     normals[near] = sets.normals[partners[near]]
+    # The surface's height above each partner's tangent plane where T(a) lies over it (module doc),
+    # less what the offsets' noise adds, its variance per axis that of the plain residuals.
+    offsets = np.broadcast_to(paired.mapped[keep][:, None, :], normals.shape)[near] - model[partners[near]]
+    plain = np.einsum("ni,ni->n", offsets, normals[near])
+    noise_variance = float(np.mean(plain**2)) if plain.size else 0.0
+    heights = np.zeros(partners.shape)
+    heights[near] = surface_heights(offsets, sets.normals.curvatures(partners[near]), noise_variance)
     # A partner's normal turned to agree with the nearest's (a fitted normal's sign is arbitrary).
-    normals = normals * np.where(np.einsum("nki,ni->nk", normals, normals[:, 0]) < 0, -1.0, 1.0)[..., None]
+    signs = np.where(np.einsum("nki,ni->nk", normals, normals[:, 0]) < 0, -1.0, 1.0)
+    normals = normals * signs[..., None]
     weights = near / near.sum(axis=1, keepdims=True)
     mean_normal = np.einsum("nk,nki->ni", weights, normals)
     mean_offset = np.einsum("nk,nki,nki->n", weights, normals, model[partners])
+    mean_offset += np.einsum("nk,nk->n", weights, signs * heights)
     sources = [paired.mapped[keep]]
     # The point of the mean normal's line through the origin on the plane of the mean residual:
     # mean_normal . (T(a) - it) = mean_j n_j . (T(a) - b_j).
@@ -359,9 +419,24 @@ def _plane_pairs(sim: Similarity, sets: Sets, paired: _Paired, rows: np.ndarray 
             keep_back = np.isin(-1 - columns, rows)
         near = _as_near(backward_sq[keep_back])
         weights = near / near.sum(axis=1, keepdims=True)
-        sources.append(np.einsum("nk,nki->ni", weights, sim.apply(data[backward_index[keep_back]])))
-        targets.append(model[columns[keep_back]])
-        plane_normals.append(sets.normals[columns[keep_back]])
+        kept_columns = columns[keep_back]
+        partners_mapped = sim.apply(data[backward_index[keep_back]].reshape(-1, data.shape[1])).reshape(
+            (*near.shape, data.shape[1])
+        )
+        sources.append(np.einsum("nk,nki->ni", weights, partners_mapped))
+        model_normals = sets.normals[kept_columns]
+        target = model[kept_columns]
+        # The mean of the partners' heights above the model point's tangent plane, where the
+        # surface through them lies: the plane's point moved along the normal by it.
+        count = near.shape[1]
+        back_heights = surface_heights(
+            (partners_mapped - target[:, None, :]).reshape(-1, data.shape[1]),
+            np.repeat(sets.normals.curvatures(kept_columns), count, axis=0),
+            noise_variance,
+        ).reshape(near.shape)
+        target = target + np.einsum("nk,nk->n", weights, back_heights)[:, None] * model_normals
+        targets.append(target)
+        plane_normals.append(model_normals)
         backward_kept = backward_sq[keep_back, 0]
         identities.append(-1 - columns[keep_back])
     return PlanePairs(

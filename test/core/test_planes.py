@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from frisicp_core.planes import least_variance, scatter
+from frisicp_core.planes import curvature_coefficients, least_variance, scatter, surface_heights
 
 
 def _patches(rng: np.random.Generator, spread: tuple[float, float, float], count: int = 200) -> np.ndarray:
@@ -60,3 +60,26 @@ def test_two_dimensional_patches_use_eigh() -> None:
     values, vectors = np.linalg.eigh(matrices)
     assert np.allclose(smallest, values[:, 0])
     assert np.allclose(np.abs(np.einsum("ni,ni->n", normals, vectors[:, :, 0])), 1.0)
+
+
+def test_a_sphere_patch_curves_away_from_its_outward_normal_by_one_over_the_radius() -> None:
+    """curvature_coefficients fits z = c + g.q + q^T K q / 2 about the patch's origin: on a sphere
+    of radius 2, seen from outside, K = -I / 2 in the tangent plane, so S = -(I - n n^T) / 2 in the
+    cloud's axes (packed upper triangle); surface_heights gives the sphere's drop below the
+    tangent plane at a tangential offset, and nothing for an offset along the normal."""
+    rng = np.random.default_rng(4)
+    radius = 2.0
+    directions = rng.normal(size=(3000, 3))
+    points = radius * directions / np.linalg.norm(directions, axis=1, keepdims=True)
+    origins = points[:5]
+    normals = origins / radius  # outward
+    distances = np.linalg.norm(points[None, :, :] - origins[:, None, :], axis=2)
+    neighbours = np.argsort(distances, axis=1)[:, :40]
+    packed = curvature_coefficients(points[neighbours] - origins[:, None, :], normals)
+    expected = -(np.eye(3) - normals[:, :, None] * normals[:, None, :]) / radius
+    rows, cols = np.triu_indices(3)
+    np.testing.assert_allclose(packed, expected[:, rows, cols], atol=0.02)
+    tangent = np.cross(normals, [0.0, 0.0, 1.0])
+    tangent *= 0.1 / np.linalg.norm(tangent, axis=1, keepdims=True)
+    np.testing.assert_allclose(surface_heights(tangent, packed), -(0.1**2) / (2 * radius), rtol=0.05)
+    np.testing.assert_allclose(surface_heights(0.1 * normals, packed), 0.0, atol=1e-4)
