@@ -42,11 +42,12 @@ the other cloud's points lie off the tangent plane by about kappa d^2 / 2 at a d
 it; the backward rows compare a model point's plane with its data partners a data spacing away,
 so two clean samplings of the demo's bumpy surface registered with a scale bias of +0.07 % at
 5,000 data points (4 of their sigmas) and +0.02 % at 20,000, with no noise and whatever the
-model's density; with the quadric, within +-0.007 % and +-0.002 % (test/core/test_curvature_bias.py).
+model's density; with the quadric, within +-0.007 % and +-0.002 % (these from a one-off
+diagnosis; test/core/test_curvature_bias.py checks the 5,000-point case within 0.02 %).
 Noise in the tangential offset adds trace(K) sigma^2 / 2 to the expected height, which is taken
 off (:func:`~frisicp_core.planes.surface_heights`; sigma^2 per axis from the forward pairs'
 plain residuals): without it the noisy crops of ``trustworthy.py`` came out further off in scale
-than with the tangent planes (median 0.072 -> 0.133 %), with it 0.083 %. Measured with
+than with the tangent planes (median 0.072 -> 0.133 %, a one-off run of a variant), with it 0.083 %. Measured with
 ``trustworthy.py`` against the tangent planes (2026-12-04, development cases): 0
 wrong-and-reliable, successes the same in number (a sparse map turned reliable, a 20 % bunny
 crop at full resolution refused at 3 sigma of rotation), reliable within 3 sigma 151/150/150 ->
@@ -59,7 +60,7 @@ off in scale before and after, now just outside). Other clouds (``--draw 2``: ch
 bunny_part2): 0 wrong-and-reliable, every reliable result within 3 sigma, successes 52 -> 51.
 ``make demo`` (2,500-point clouds of the bumpy surface, noise 0.005): median scale error
 0.147 -> 0.010 %. The cost: fitting the curvature to each normal's patch (about 18 ms of a warm
-registration of the bunny) and the heights in every pass; ``benchmarks/speed_ab.py`` against
+registration of the bunny, a one-off profile) and the heights in every pass; ``benchmarks/speed_ab.py`` against
 the tangent planes, 1.08x cold and 1.35x warm on the bunny (docs/speed_ab_quadric*.md).
 A step is kept when, re-paired, it fits the rows the current pose keeps no worse (their mean
 squared residual; :func:`_tried`), not when the new pose's own trimmed RMS is lower: the two
