@@ -140,7 +140,9 @@ class PreparedModel:
             return ModelNormals(tree)
         if self._parent is not None:
             parent, rows = self._parent
-            return _ParentNormals(parent.normals(parent.tree(tree.backend)), rows)
+            return self._cache.value(
+                ("normals", id(tree)), lambda: _ParentNormals(parent.normals(parent.tree(tree.backend)), rows)
+            )
         return self._cache.value(("normals", id(tree)), lambda: ModelNormals(tree))
 
     def grid(self) -> GridIndex:
@@ -248,20 +250,28 @@ class _ParentNormals(ModelNormals):
     """A window's normals: its parent model's at the window's rows. Fitted to the whole map's
     points, a point at the window's edge gets the normal of its whole neighbourhood, and a normal
     is fitted once for every window it falls in (a tracked sensor's windows overlap scan after
-    scan): the normals of a 100,000-point window were a fifth of a tracking registration."""
+    scan): the normals of a 100,000-point window were a fifth of a tracking registration.
+    Copied into tables of the window's own as they are first asked for: the refinement looks
+    them up a dozen times per registration, and scattered reads from a big map's tables miss
+    the processor's caches (a quarter of a tracking step's pairing in the 2,000,000-point map of
+    benchmarks/big_map_node.py, a one-off profile)."""
 
     def __init__(self, parent: ModelNormals, rows: np.ndarray) -> None:
-        # No super().__init__(): the parent holds the normals (and its tree is the whole map's).
+        # No super().__init__(): the parent fits the normals (and its tree is the whole map's).
         self.tree = parent.tree
         self.neighbours = parent.neighbours
         self._parent_normals = parent
         self._rows = rows
+        self._normals = np.full((rows.shape[0], parent.tree.points.shape[1]), np.nan)
+        self._curvatures = np.zeros((rows.shape[0], parent.curvature_width), np.float32)
 
-    def __getitem__(self, index: np.ndarray) -> FloatArray:
-        return self._parent_normals[self._rows[index]]
-
-    def curvatures(self, index: np.ndarray) -> FloatArray:
-        return self._parent_normals.curvatures(self._rows[index])
+    def _fitted(self, index: np.ndarray) -> FloatArray:
+        missing = np.unique(index[np.isnan(self._normals[index, 0])])
+        if missing.size:
+            self._normals[missing], self._curvatures[missing] = self._parent_normals.surface(
+                self._rows[missing]
+            )
+        return self._normals
 
 
 @dataclass(frozen=True)

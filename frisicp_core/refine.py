@@ -99,15 +99,23 @@ and turned scans within their 3 sigma of scale: the two clouds' means shrink the
 different amounts). On sparse objects the mean still shifted the scale (with the tangent
 planes, before the quadric above): the chef figure's frames (about 1,000 points, none of them
 reliable) ended 0.5-1 % off in scale, where the nearest alone ended 0.01-0.9 %.
+
+Cost, the same answers to the bit: the steps re-pair the same sampled points at poses a little
+apart, so their partners come from lists of each point's nearest kept between the steps
+(:mod:`frisicp_core.neighbour_lists`, exact), not from a KD-tree search each time; a pose tried
+is first judged on the current rows alone, and its own kept pairs are built only when it is
+taken (and are those rows' pairs when the trimming keeps the same rows).
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
 
 from .kdtree import NearestNeighbors
+from .neighbour_lists import NeighbourLists
 from .overlap import select_pairs
 from .planes import (
     centred_patches,
@@ -122,6 +130,8 @@ from .similarity import FloatArray, Similarity
 from .uncertainty import NORMAL_NEIGHBOURS, Uncertainty, estimate_uncertainty, pair_jacobians
 
 MAX_PAIRS = 3000
+# The searches of one direction's partners each: forward (the model's), backward (the data's).
+_Lists = tuple[NeighbourLists, NeighbourLists]
 # A kept point's residual: the mean over its PAIRS_PER_POINT nearest points of the other cloud
 # within AS_NEAR times the nearest's distance (module doc).
 PAIRS_PER_POINT = 5
@@ -149,10 +159,30 @@ class ModelNormals:
         self.neighbours = neighbours
         self._normals = np.full(tree.points.shape, np.nan)
         # Packed, in single precision: a height's correction is small beside the noise, and the
-        # table spans a big map's every point (6 entries: 24 bytes a point, 48 in double).
-        self._curvatures = np.zeros((tree.points.shape[0], packed_size(tree.points.shape[1])), np.float32)
+        # table spans a big map's every point (6 entries: 24 bytes a point, 48 in double). Filled
+        # now, as the normals are, not left to np.zeros' lazily mapped pages: a node tracking in a
+        # big map would otherwise grow its memory by every page its new normals touch (6 MiB a
+        # minute in benchmarks/big_map_node.py), which reads as a leak.
+        self._curvatures = np.full((tree.points.shape[0], packed_size(tree.points.shape[1])), 0.0, np.float32)
 
     def __getitem__(self, index: np.ndarray) -> FloatArray:
+        values: FloatArray = self._fitted(index)[index]
+        return values
+
+    @property
+    def curvature_width(self) -> int:
+        """Entries of a packed curvature matrix (:func:`~frisicp_core.planes.packed_size`)."""
+        return int(self._curvatures.shape[1])
+
+    def surface(self, index: np.ndarray) -> tuple[FloatArray, FloatArray]:
+        """The normals at the points ``index`` and the packed curvature matrices there
+        (:func:`~frisicp_core.planes.curvature_coefficients`; heights along those normals)."""
+        normals = self._fitted(index)[index]
+        curvatures: FloatArray = self._curvatures[index]
+        return normals, curvatures
+
+    def _fitted(self, index: np.ndarray) -> FloatArray:
+        """The table of normals, with those of the points ``index`` fitted."""
         missing = np.unique(index[np.isnan(self._normals[index, 0])])
         if missing.size:
             points = self.tree.points
@@ -163,15 +193,7 @@ class ModelNormals:
             # The patches about their own points (the fit's origin), from the centred ones.
             centred += (means - points[missing])[:, None, :]
             self._curvatures[missing] = curvature_coefficients(centred, normals)
-        values: FloatArray = self._normals[index]
-        return values
-
-    def curvatures(self, index: np.ndarray) -> FloatArray:
-        """The packed curvature matrices at the points ``index``
-        (:func:`~frisicp_core.planes.curvature_coefficients`; heights along the stored normals)."""
-        self[index]
-        values: FloatArray = self._curvatures[index]
-        return values
+        return self._normals
 
 
 # Nearest points of the whole cloud searched for a half's nearest: a random half holds none of
@@ -336,9 +358,11 @@ class _Paired:
     backward: tuple[np.ndarray, FloatArray, np.ndarray] | None = None
 
 
-def _pairing(sim: Similarity, sets: Sets, bidirectional: bool) -> _Paired:
+def _pairing(sim: Similarity, sets: Sets, bidirectional: bool, lists: _Lists | None = None) -> _Paired:
     """Each sampled point's partners at ``sim``, one column each (PAIRS_PER_POINT of them on the
-    whole clouds; a split half's single nearest, from the whole's candidates)."""
+    whole clouds, searched through ``lists`` when given; a split half's single nearest, from the
+    whole's candidates)."""
+    forward_search, backward_search = lists or (sets.model_tree, sets.data_tree)
     data, model = sets.data_tree.points, sets.model_tree.points
     data_half, model_half, candidates = sets.data_half, sets.model_half, sets.candidates
     split = None if data_half is None or model_half is None else (data_half, model_half)
@@ -347,7 +371,7 @@ def _pairing(sim: Similarity, sets: Sets, bidirectional: bool) -> _Paired:
     if split is None or candidates is None:
         forward_rows = _sample(data.shape[0])
         mapped = sim.apply(data[forward_rows])
-        forward_sq, forward_index = sets.model_tree.query_k(mapped, PAIRS_PER_POINT)
+        forward_sq, forward_index = forward_search.query_k(mapped, PAIRS_PER_POINT)
     else:
         forward_rows, nearest_sq, nearest = _half_pairs(candidates.data_rows, candidates.forward, *split)
         mapped, forward_sq, forward_index = (
@@ -360,7 +384,7 @@ def _pairing(sim: Similarity, sets: Sets, bidirectional: bool) -> _Paired:
         return paired
     if split is None or candidates is None:
         columns = _sample(model.shape[0])
-        backward_sq, backward_index = sets.data_tree.query_k(
+        backward_sq, backward_index = backward_search.query_k(
             sim.inverse().apply(model[columns]), PAIRS_PER_POINT
         )
     else:
@@ -371,32 +395,52 @@ def _pairing(sim: Similarity, sets: Sets, bidirectional: bool) -> _Paired:
     return replace(paired, backward=(columns, backward_sq * sim.scale**2, backward_index))
 
 
-def plane_pairs(sim: Similarity, sets: Sets, bidirectional: bool = True) -> PlanePairs:
+def plane_pairs(
+    sim: Similarity, sets: Sets, bidirectional: bool = True, lists: _Lists | None = None
+) -> PlanePairs:
     """The kept pairs of ``sim`` in both directions (sampled, see the module doc)."""
-    return _plane_pairs(sim, sets, _pairing(sim, sets, bidirectional))
+    paired = _pairing(sim, sets, bidirectional, lists)
+    return _plane_pairs(sim, sets, paired, _trimmed(sim, sets, paired))
 
 
-def _plane_pairs(sim: Similarity, sets: Sets, paired: _Paired, rows: np.ndarray | None = None) -> PlanePairs:
-    """The pairs of ``paired`` (found at ``sim``) the trimming keeps, or with ``rows`` (kept rows'
-    identities, :attr:`PlanePairs.rows`) those rows' pairs, whatever their distances."""
+def _trimmed(sim: Similarity, sets: Sets, paired: _Paired) -> tuple[np.ndarray, np.ndarray | None]:
+    """Which of ``paired``'s rows (found at ``sim``) the trimming keeps, forward and backward."""
+    keep = _kept(paired.forward_sq[:, 0], sets.model_spacing, sets)
+    if paired.backward is None:
+        return keep, None
+    return keep, _kept(paired.backward[1][:, 0], sets.data_spacing * sim.scale, sets)
+
+
+def _listed_rows(sets: Sets, paired: _Paired, rows: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+    """Which of ``paired``'s rows are among ``rows`` (kept rows' identities, :attr:`PlanePairs.rows`)."""
+    keep = _listed(paired.forward_rows, rows[rows >= 0], sets.data_tree.points.shape[0])
+    if paired.backward is None:
+        return keep, None
+    return keep, _listed(paired.backward[0], -1 - rows[rows < 0], sets.model_tree.points.shape[0])
+
+
+def _plane_pairs(
+    sim: Similarity, sets: Sets, paired: _Paired, keeps: tuple[np.ndarray, np.ndarray | None]
+) -> PlanePairs:
+    """The pairs of ``paired`` (found at ``sim``) in ``keeps``, forward and backward (masks of
+    its rows: :func:`_trimmed` or :func:`_listed_rows`)."""
     data, model = sets.data_tree.points, sets.model_tree.points
     forward_sq, forward_index = paired.forward_sq, paired.forward_index
-    if rows is None:
-        keep = _kept(forward_sq[:, 0], sets.model_spacing, sets)
-    else:
-        keep = np.isin(paired.forward_rows, rows)
+    keep, keep_back = keeps
     near = _as_near(forward_sq[keep])
     partners = forward_index[keep]
     # Only the averaged partners' normals: a model normal is fitted when first asked for.
     normals = np.zeros((*partners.shape, model.shape[1]))
-    normals[near] = sets.normals[partners[near]]
+    near_partners = partners[near]
+    near_normals, curvatures = sets.normals.surface(near_partners)
+    normals[near] = near_normals
     # The surface's height above each partner's tangent plane where T(a) lies over it (module doc),
     # less what the offsets' noise adds, its variance per axis that of the plain residuals.
-    offsets = np.broadcast_to(paired.mapped[keep][:, None, :], normals.shape)[near] - model[partners[near]]
-    plain = np.einsum("ni,ni->n", offsets, normals[near])
+    offsets = np.broadcast_to(paired.mapped[keep][:, None, :], normals.shape)[near] - model[near_partners]
+    plain = np.einsum("ni,ni->n", offsets, near_normals)
     noise_variance = float(np.mean(plain**2)) if plain.size else 0.0
     heights = np.zeros(partners.shape)
-    heights[near] = surface_heights(offsets, sets.normals.curvatures(partners[near]), noise_variance)
+    heights[near] = surface_heights(offsets, curvatures, noise_variance)
     # A partner's normal turned to agree with the nearest's (a fitted normal's sign is arbitrary).
     signs = np.where(np.einsum("nki,ni->nk", normals, normals[:, 0]) < 0, -1.0, 1.0)
     normals = normals * signs[..., None]
@@ -411,13 +455,9 @@ def _plane_pairs(sim: Similarity, sets: Sets, paired: _Paired, rows: np.ndarray 
     plane_normals = [mean_normal]
     identities = [paired.forward_rows[keep]]
     backward_kept, sampled_columns = np.zeros(0), 0
-    if paired.backward is not None:
+    if paired.backward is not None and keep_back is not None:
         columns, backward_sq, backward_index = paired.backward
         sampled_columns = int(columns.shape[0])
-        if rows is None:
-            keep_back = _kept(backward_sq[:, 0], sets.data_spacing * sim.scale, sets)
-        else:
-            keep_back = np.isin(-1 - columns, rows)
         near = _as_near(backward_sq[keep_back])
         weights = near / near.sum(axis=1, keepdims=True)
         kept_columns = columns[keep_back]
@@ -425,14 +465,14 @@ def _plane_pairs(sim: Similarity, sets: Sets, paired: _Paired, rows: np.ndarray 
             (*near.shape, data.shape[1])
         )
         sources.append(np.einsum("nk,nki->ni", weights, partners_mapped))
-        model_normals = sets.normals[kept_columns]
+        model_normals, model_curvatures = sets.normals.surface(kept_columns)
         target = model[kept_columns]
         # The mean of the partners' heights above the model point's tangent plane, where the
         # surface through them lies: the plane's point moved along the normal by it.
         count = near.shape[1]
         back_heights = surface_heights(
             (partners_mapped - target[:, None, :]).reshape(-1, data.shape[1]),
-            np.repeat(sets.normals.curvatures(kept_columns), count, axis=0),
+            np.repeat(model_curvatures, count, axis=0),
             noise_variance,
         ).reshape(near.shape)
         target = target + np.einsum("nk,nk->n", weights, back_heights)[:, None] * model_normals
@@ -450,6 +490,15 @@ def _plane_pairs(sim: Similarity, sets: Sets, paired: _Paired, rows: np.ndarray 
         sampled_columns,
         np.concatenate(identities),
     )
+
+
+def _listed(rows: np.ndarray, listed: np.ndarray, count: int) -> np.ndarray:
+    """Which of ``rows`` (rows of a cloud of ``count`` points) are among ``listed``: ``np.isin``
+    by a table of the cloud's rows instead of sorting."""
+    table = np.zeros(count, dtype=bool)
+    table[listed] = True
+    found: np.ndarray = table[rows]
+    return found
 
 
 def perturb(sim: Similarity, delta: FloatArray, centre: FloatArray) -> Similarity:
@@ -488,7 +537,10 @@ def polish(
     """Gauss-Newton steps (module doc) from ``sim`` until one moves the data's centroid
     neighbourhood by less than ``tolerance`` (model units) or ``steps`` were taken.
     ``centroid`` is the data's centroid (data frame)."""
-    pairs = plane_pairs(sim, sets, bidirectional)
+    # The steps re-pair the same sampled points at poses a little apart: their partners are
+    # searched through lists of their nearest (frisicp_core.neighbour_lists), not the trees.
+    lists = (NeighbourLists(sets.model_tree), NeighbourLists(sets.data_tree))
+    pairs = plane_pairs(sim, sets, bidirectional, lists)
     history = [pairs.plane_rms]
     converged = False
     taken = 0
@@ -542,7 +594,7 @@ def polish(
         if taken == steps and not final_pass:
             sim = candidate
             break
-        trial, fit = _tried(candidate, sets, bidirectional, pairs)
+        kept, fit = _tried(candidate, sets, bidirectional, pairs, lists)
         if not fit <= variance:
             # Re-paired, the step fits the rows kept now worse: a linearisation too far from the
             # pairs it was solved on, or one too short to beat the jitter of re-pairing (module
@@ -550,34 +602,47 @@ def polish(
             # increases. None lowers it: the pose sits where re-pairing jitters, which is converged.
             others = [perturb(sim, factor * delta, centre) for factor in _OTHER_LENGTHS]
             tried = [
-                (fit, other, trial)
+                (fit, other, kept)
                 for other in others
-                for trial, fit in [_tried(other, sets, bidirectional, pairs)]
+                for kept, fit in [_tried(other, sets, bidirectional, pairs, lists)]
             ]
             fitting = [item for item in tried if item[0] <= variance]
             if not fitting:
                 converged = True
                 break
-            _, candidate, trial = min(fitting, key=lambda item: item[0])
-        sim, pairs = candidate, trial
+            _, candidate, kept = min(fitting, key=lambda item: item[0])
+        sim, pairs = candidate, kept()
         history.append(pairs.plane_rms)
     return Polished(sim, pairs, taken, converged, tuple(history))
 
 
 def _tried(
-    candidate: Similarity, sets: Sets, bidirectional: bool, current: PlanePairs
-) -> tuple[PlanePairs, float]:
-    """``candidate``'s kept pairs, and how well it fits ``current``'s kept rows: their mean
-    squared point-to-plane residual, each row re-paired at ``candidate`` (a step is kept when this
-    is no worse than the current pose's own).
+    candidate: Similarity, sets: Sets, bidirectional: bool, current: PlanePairs, lists: _Lists
+) -> tuple[Callable[[], PlanePairs], float]:
+    """``candidate``'s kept pairs (computed when called: most candidates are not taken), and how
+    well it fits ``current``'s kept rows: their mean squared point-to-plane residual, each row
+    re-paired at ``candidate`` (a step is kept when this is no worse than the current pose's own).
 
     The same rows, not each pose's own kept ones: the trimming keeps a slightly different set at
     every pose, and a few borderline pairs entering or leaving it move the RMS by more than a
     step near the optimum does, so comparing the two poses' own RMS stopped the steps wherever
     that jitter happened to favour the current pose (module doc)."""
-    paired = _pairing(candidate, sets, bidirectional)
-    same_rows = _plane_pairs(candidate, sets, paired, current.rows)
-    return _plane_pairs(candidate, sets, paired), float(np.mean(same_rows.residuals**2))
+    paired = _pairing(candidate, sets, bidirectional, lists)
+    listed = _listed_rows(sets, paired, current.rows)
+    same_rows = _plane_pairs(candidate, sets, paired, listed)
+
+    def kept() -> PlanePairs:
+        trimmed = _trimmed(candidate, sets, paired)
+        # Near the optimum the trimming often keeps the very rows it kept: the same pairs.
+        if all(_same(a, b) for a, b in zip(trimmed, listed, strict=True)):
+            return same_rows
+        return _plane_pairs(candidate, sets, paired, trimmed)
+
+    return kept, float(np.mean(same_rows.residuals**2))
+
+
+def _same(a: np.ndarray | None, b: np.ndarray | None) -> bool:
+    return (a is None and b is None) or (a is not None and b is not None and np.array_equal(a, b))
 
 
 def difference(a: Similarity, b: Similarity, centroid: FloatArray) -> FloatArray:

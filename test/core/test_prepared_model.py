@@ -183,3 +183,21 @@ def test_windows_keep_the_same_map_points_where_they_overlap():
     common = np.intersect1d(by_pass, shifted)
     inside_both = np.all((MAP.points[common] >= low + 2.0) & (MAP.points[common] <= high), axis=1)
     assert count == again and inside_both.all() and common.size > 0.7 * by_pass.size
+
+
+def test_a_windows_normals_are_the_maps_at_its_rows_and_fitted_once():
+    """A window copies its parent's normals and curvatures as they are asked for (its own small
+    tables: fewer cache misses than reading the big map's); the values are the map's."""
+    whole = PreparedModel(MAP.points)
+    rows = np.flatnonzero(
+        np.all((MAP.points >= [40.0, 40.0, -10.0]) & (MAP.points <= [60.0, 60.0, 10.0]), axis=1)
+    )
+    window = whole.subset(rows)
+    normals = window.normals(window.tree())
+    assert window.normals(window.tree()) is normals  # one table per window
+    asked = np.arange(0, len(rows), 7)
+    window_normals, window_curvatures = normals.surface(asked)
+    map_normals, map_curvatures = whole.normals(whole.tree()).surface(rows[asked])
+    np.testing.assert_array_equal(window_normals, map_normals)
+    np.testing.assert_array_equal(window_curvatures, map_curvatures)
+    np.testing.assert_array_equal(normals[asked[:5]], map_normals[:5])
