@@ -49,7 +49,9 @@ class GridIndex:
         self.cell = (volume * POINTS_PER_CELL / max(n, 1)) ** (1.0 / dim)
         self.shape = np.floor(extent / self.cell).astype(np.int64) + 1
         keys = self._keys(self._cells(points))
-        self.order = np.argsort(keys)
+        # Stable: each cell's points stay in ascending order, so a box's points are a few ascending
+        # runs, which a stable (merging) sort puts in order several times faster than quicksort.
+        self.order = np.argsort(keys, kind="stable")
         self.occupied, self.starts = np.unique(keys[self.order], return_index=True)
         self.ends = np.append(self.starts[1:], n)
 
@@ -75,7 +77,7 @@ class GridIndex:
         for k in range(self.points.shape[1]):
             column = self.points[candidates, k]
             inside &= (column >= low[k]) & (column <= high[k])
-        rows: np.ndarray = np.sort(candidates[inside])
+        rows: np.ndarray = np.sort(candidates[inside], kind="stable")
         return rows
 
     def _cells(self, points: FloatArray) -> np.ndarray:
