@@ -15,20 +15,23 @@ def _surface(rng: np.random.Generator, count: int = 6000) -> np.ndarray:
     return np.column_stack([xy, z])
 
 
+def _assert_answers_as_the_tree(lists: NeighbourLists, tree: NearestNeighbors, queries: np.ndarray) -> None:
+    dist_sq, index = lists.query_k(queries, 5)
+    expected_sq, expected = tree.query_k(queries, 5)
+    assert np.array_equal(index, expected)
+    assert np.array_equal(dist_sq, expected_sq)
+
+
 @pytest.mark.parametrize("step", [0.0, 0.001, 0.004, 0.02, 0.1])
 def test_moved_queries_get_the_trees_neighbours_to_the_bit(step: float) -> None:
     rng = np.random.default_rng(3)
     tree = NearestNeighbors(_surface(rng))
     queries = _surface(rng, 2000)
     lists = NeighbourLists(tree)
-    first = lists.query_k(queries, 5)
-    assert all(np.array_equal(a, b) for a, b in zip(first, tree.query_k(queries, 5), strict=True))
+    _assert_answers_as_the_tree(lists, tree, queries)
     for _ in range(3):  # a few steps of a refinement, each from the last
         queries = queries + rng.normal(0.0, step, queries.shape)
-        dist_sq, index = lists.query_k(queries, 5)
-        expected_sq, expected = tree.query_k(queries, 5)
-        assert np.array_equal(index, expected)
-        assert np.array_equal(dist_sq, expected_sq)
+        _assert_answers_as_the_tree(lists, tree, queries)
 
 
 def test_small_moves_are_answered_without_searching_the_tree() -> None:
@@ -61,10 +64,7 @@ def test_queries_thrown_past_float64_find_what_the_tree_finds() -> None:
     lists.query_k(queries, 5)
     wild = queries.copy()
     wild[:10] = 1e300  # a few rows of a wild pose
-    dist_sq, index = lists.query_k(wild, 5)
-    expected_sq, expected = tree.query_k(wild, 5)
-    assert np.array_equal(index, expected)
-    assert np.array_equal(dist_sq, expected_sq)
+    _assert_answers_as_the_tree(lists, tree, wild)
 
 
 def test_as_many_neighbours_as_listed_or_more_go_to_the_tree() -> None:
