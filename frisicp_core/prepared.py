@@ -252,9 +252,10 @@ class _ParentNormals(ModelNormals):
     is fitted once for every window it falls in (a tracked sensor's windows overlap scan after
     scan): the normals of a 100,000-point window were a fifth of a tracking registration.
     Copied into tables of the window's own as they are first asked for: the refinement looks
-    them up a dozen times per registration, and scattered reads from a big map's tables miss
-    the processor's caches (a quarter of a tracking step's pairing in the 2,000,000-point map of
-    benchmarks/big_map_node.py, a one-off profile)."""
+    them up a dozen times per registration, and reads scattered over a big map's tables miss the
+    processor's caches. (In a one-off profile of tracking in benchmarks/big_map_node.py's
+    2,000,000-point map the lookups were a quarter of a pairing's cost, mostly fitting normals
+    new to the track; what the copies save was too small to tell from this machine's noise.)"""
 
     def __init__(self, parent: ModelNormals, rows: np.ndarray) -> None:
         # No super().__init__(): the parent fits the normals (and its tree is the whole map's).
