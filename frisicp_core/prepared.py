@@ -267,7 +267,7 @@ class _ParentNormals(ModelNormals):
         self._curvatures = np.zeros((rows.shape[0], parent.curvature_width), np.float32)
 
     def _fitted(self, index: np.ndarray) -> FloatArray:
-        missing = np.unique(index[np.isnan(self._normals[index, 0])])
+        missing = self._unfitted(index)
         if missing.size:
             self._normals[missing], self._curvatures[missing] = self._parent_normals.surface(
                 self._rows[missing]

@@ -181,9 +181,14 @@ class ModelNormals:
         curvatures: FloatArray = self._curvatures[index]
         return normals, curvatures
 
+    def _unfitted(self, index: np.ndarray) -> np.ndarray:
+        """The points of ``index`` whose normals the table does not hold yet (each once)."""
+        missing: np.ndarray = np.unique(index[np.isnan(self._normals[index, 0])])
+        return missing
+
     def _fitted(self, index: np.ndarray) -> FloatArray:
         """The table of normals, with those of the points ``index`` fitted."""
-        missing = np.unique(index[np.isnan(self._normals[index, 0])])
+        missing = self._unfitted(index)
         if missing.size:
             points = self.tree.points
             _, neighbours = self.tree.query_k(points[missing], self.neighbours)
@@ -633,7 +638,7 @@ def _tried(
 
     def kept() -> PlanePairs:
         trimmed = _trimmed(candidate, sets, paired)
-        # Near the optimum the trimming often keeps the very rows it kept: the same pairs.
+        # When the trimming keeps the very rows it kept, the pairs are those already built.
         if all(_same(a, b) for a, b in zip(trimmed, listed, strict=True)):
             return same_rows
         return _plane_pairs(candidate, sets, paired, trimmed)
