@@ -249,15 +249,20 @@ def score(spec: Spec, data_dir: Path) -> dict[str, Any]:
 
 
 def truth_start(data: np.ndarray, model: np.ndarray, truth: Similarity, diagonal: float) -> dict[str, bool]:
-    """Registered from the truth (warm, the answer before ``register``'s cold retry of an
-    unreliable warm start): do the data determine the pose to the tolerance there? Right and
-    reliable says yes, whatever the cold search finds; not reliable says the data do not
-    (the issue's test for "the result says so" instead of a success)."""
-    result = _register(
-        data, PreparedModel.of(as_point_set(model, "model")), RegistrationConfig(initial=truth)
-    )
+    """Registered from the truth (:func:`from_truth`): do the data determine the pose to the
+    tolerance there? Right and reliable says yes, whatever the cold search finds; not reliable
+    says the data do not (the issue's test for "the result says so" instead of a success)."""
+    result = from_truth(data, model, truth)
     errors = pose_errors(result.similarity, truth, data, diagonal)
     return {"right": bool(errors.success), "reliable": bool(result.reliable)}
+
+
+def from_truth(data: np.ndarray, model: np.ndarray, truth: Similarity, seed: int = 0) -> RegistrationResult:
+    """``data`` registered onto ``model`` warm from ``truth``: the answer before ``register``'s
+    cold retry of an unreliable warm start (a prepared model of its own: one remembers its
+    thinned levels' draws)."""
+    prepared = PreparedModel.of(as_point_set(model, "model"))
+    return _register(data, prepared, RegistrationConfig(seed=seed, initial=truth))
 
 
 def record(

@@ -10,8 +10,8 @@ covariance's pair subset and the random halves that size the sigmas
 is reliable for some seeds and refused for others; ``benchmarks/trustworthy.py`` calls a case
 *determined* when one registration from the truth (seed 0) is right and reliable, which is as
 much a draw. This registers one of its cases (``--suite``, ``--scene``, ``--index``, ``--cap``,
-``--draw`` as there) with ``seed`` = 0 .. N-1, cold and from the truth (the warm answer before
-``register``'s cold retry, as there), and prints per seed the
+``--draw`` as there) with ``seed`` = 0 .. N-1, cold and from the truth
+(``trustworthy.from_truth``, as there), and prints per seed the
 errors against the truth and 3 sigma (rotation in degrees, scale in percent), the verdict, and
 the ranges over the seeds. Exits 0 without measuring when the data folder is absent, saying so.
 """
@@ -22,13 +22,11 @@ import os
 
 os.environ.setdefault("OMP_NUM_THREADS", "1")
 
-from trustworthy import SUITES, Spec, capped_case
+from trustworthy import SUITES, Spec, capped_case, from_truth
 
 from frisicp_bench import script
 from frisicp_bench.metrics import pose_errors
-from frisicp_core import PreparedModel, RegistrationConfig, register
-from frisicp_core.points import as_point_set
-from frisicp_core.registration import _register
+from frisicp_core import RegistrationConfig, register
 from frisicp_core.uncertainty import SIGMAS
 
 
@@ -56,9 +54,8 @@ def main(argv: list[str] | None = None) -> int:
     for start in ("cold", "truth"):
         sigmas_scale, sigmas_rotation, reliable = [], [], 0
         for seed in range(seeds):
-            if start == "truth":  # as trustworthy.truth_start: the warm answer, no cold retry
-                prepared = PreparedModel.of(as_point_set(model, "model"))
-                result = _register(data, prepared, RegistrationConfig(seed=seed, initial=case.truth))
+            if start == "truth":
+                result = from_truth(data, model, case.truth, seed)
             else:
                 result = register(data, model, RegistrationConfig(seed=seed))
             errors = pose_errors(result.similarity, case.truth, data, case.model_diagonal)
