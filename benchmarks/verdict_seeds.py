@@ -41,12 +41,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--draw", type=int, default=0, help="as trustworthy.py's --draw (default 0)")
     parser.add_argument("--seeds", type=int, default=6)
     args = script.parse(parser, argv)
+    if args.seeds < 1 or args.cap < 0 or args.index < 0:
+        parser.error("--seeds must be at least 1, --cap and --index at least 0")
     seeds = 1 if args.quick else args.seeds
-    if not (args.data / "real").is_dir() or not (args.data / "bunny").is_dir():
-        return script.skip(args, f"no data: {args.data}/real and {args.data}/bunny are needed")
-    case, data, model, _ = capped_case(
-        Spec(args.suite, args.scene, args.index, args.cap, args.draw), args.data
-    )
+    spec = Spec(args.suite, args.scene, args.index, args.cap, args.draw)
+    built = script.load_data(args, lambda data: capped_case(spec, data))
+    if built is None:
+        return 0
+    case, data, model, _ = built
     if case.truth is None:
         print(f"{case.name}: no known answer, nothing to compare")
         return 0
