@@ -6,6 +6,8 @@ import math
 from dataclasses import dataclass, field
 from enum import Enum
 
+import numpy as np
+
 from .kdtree import BACKENDS
 from .similarity import Similarity
 
@@ -200,6 +202,10 @@ class RegistrationConfig:
         _require(
             self.max_distance is None or self.max_distance > 0,
             f"max_distance must be positive or None, got {self.max_distance}",
+        )
+        _require(
+            isinstance(self.seed, (int, np.integer)) and not isinstance(self.seed, bool) and self.seed >= 0,
+            f"seed must be a non-negative integer, got {self.seed!r}",
         )
         _require(self.backend in BACKENDS, f"unknown backend {self.backend!r}; choose one of {BACKENDS}")
         _require(

@@ -71,6 +71,8 @@ _NOMINATE = 0.15
 _COMPLETE = 0.9
 # The random stream of the global search with the clouds' roles swapped (see _register).
 _SWAPPED_STREAM = 1
+# The random stream of the answer's uncertainty (the split halves; see _register).
+_UNCERTAINTY_STREAM = 2
 # Most probes refined down the levels to be compared with the answer on the full sets.
 _PROBE_REFINED = 3
 
@@ -405,7 +407,17 @@ def _register(
             report = replace(report, iterations=icp.iterations + report.iterations)
         reports.append(report)
         widening = track.uncertainty.widening if track is not None and track.uncertainty is not None else None
-        uncertainty = uncertainty_of(sim, plane, sets, data_centroid, rng, widening)
+        # Its own stream: the split halves then depend on the clouds, the pose and the seed, not
+        # on how many draws the search took to get there (a descriptor search takes many, a warm
+        # start none), so one pose is given one uncertainty and one verdict however it was found.
+        uncertainty = uncertainty_of(
+            sim,
+            plane,
+            sets,
+            data_centroid,
+            np.random.default_rng([config.seed, _UNCERTAINTY_STREAM]),
+            widening,
+        )
         # A competitor found by ICP is judged against the polished answer, polished itself: two
         # ICP runs stopped at their noise floor may lie a tolerance apart in one basin.
         diagonal = model.diagonal

@@ -144,6 +144,8 @@ def test_all_nan_is_empty_after_dropping():
         dict(method="gauss-newton"),
         dict(initialization="random"),
         dict(backend="flann"),
+        dict(seed=-1),
+        dict(seed=0.5),
     ],
 )
 def test_invalid_options_are_refused_with_a_reason(option):

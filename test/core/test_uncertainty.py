@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface, register
+from frisicp_core import RegistrationConfig, Similarity, axis_angle_rotation, bumpy_surface, register
 from frisicp_core.rotations import exp_rotation
 from frisicp_core.uncertainty import Uncertainty
 
@@ -54,11 +54,13 @@ def registered_with_noise(noise: float, seed: int) -> Uncertainty:
 
 
 def test_sigmas_grow_with_the_noise() -> None:
-    """Three times the noise (0.3 % to 0.8 % of the radius): every sigma at least 1.5 times larger."""
-    quiet = [registered_with_noise(0.003, seed) for seed in (100, 101)]
-    noisy = [registered_with_noise(0.009, seed) for seed in (100, 101)]
-    for name in ("scale", "rotation_deg", "translation"):
-        assert min(getattr(u, name) for u in noisy) > 1.5 * max(getattr(u, name) for u in quiet)
+    """Three times the noise (0.3 % to 0.9 % of the radius) on the same case: every sigma at
+    least 1.5 times larger. (Per case, as the issue asks: the split halves' spread is a sample
+    of three, so a quiet case's sigma may exceed another noisy case's.)"""
+    for seed in (100, 101):
+        quiet, noisy = registered_with_noise(0.003, seed), registered_with_noise(0.009, seed)
+        for name in ("scale", "rotation_deg", "translation"):
+            assert getattr(noisy, name) > 1.5 * getattr(quiet, name), (seed, name)
 
 
 def test_a_noise_free_copy_is_certain_to_far_below_the_tolerances() -> None:
@@ -116,3 +118,17 @@ def test_another_objects_answer_is_refused_with_the_prior_as_its_uncertainty() -
     assert not result.reliable
     assert result.uncertainty is not None
     assert result.uncertainty.rotation_deg == pytest.approx(60.0)
+
+
+def test_one_pose_gets_one_uncertainty_however_it_was_found():
+    """The split halves draw from their own stream: a crop found cold by the descriptor search
+    (many draws) and the same answer started warm (none) are given the same sigmas."""
+    scene = bumpy_surface(6000, seed=3)
+    crop = scene[scene[:, 0] < np.quantile(scene[:, 0], 0.4)]
+    truth = Similarity(1.7, axis_angle_rotation(np.array([0.3, 1.0, 0.2]), 0.4), np.array([0.2, -0.1, 0.3]))
+    cold = register(crop, truth.apply(scene))
+    assert cold.reliable
+    warm = register(crop, truth.apply(scene), RegistrationConfig(initial=cold.similarity))
+    assert warm.uncertainty is not None and cold.uncertainty is not None
+    assert warm.uncertainty.scale == pytest.approx(cold.uncertainty.scale, rel=0.05)
+    assert warm.uncertainty.rotation_deg == pytest.approx(cold.uncertainty.rotation_deg, rel=0.05)
