@@ -17,33 +17,7 @@ from support.data import SHARED_DATA, shared_file
 from frisicp_bench import scenes
 from frisicp_bench.cases import PAPER_SCALES
 from frisicp_bench.metrics import PoseErrors, pose_errors
-from frisicp_core import RegistrationConfig, RegistrationResult, Similarity, downsample, register
-
-
-def case_clouds(
-    suite: str,
-    index: int,
-    share: float,
-    scale: float,
-    reverse: bool = False,
-    scene_file: str = "dragon1.xyz",
-    cap: int = 10_000,
-    draw: int = 0,
-) -> tuple[np.ndarray, np.ndarray, Similarity, float]:
-    """benchmarks/trustworthy.py's case ``suite``/``scene_file``/``index`` (both clouds capped at
-    ``cap`` points, 0: full resolution; its seed, salted by ``draw``): data, model, the truth and
-    the model's diagonal."""
-    shared_file(f"bunny/{scene_file}" if scene_file.startswith("bun") else f"real/{scene_file}")
-    salt = f"/draw {draw}" if draw else ""
-    rng = np.random.default_rng(zlib.crc32(f"{suite}/{scene_file}/{index}/{cap}{salt}".encode()))
-    scene = scenes.object_cloud(SHARED_DATA, scene_file)
-    assert float(rng.choice(PAPER_SCALES)) == scale
-    case = scenes.crop_case(scene, scene_file, share, scale, rng, reverse=reverse)
-    data, model = case.data, case.model
-    if cap:
-        data, model = downsample(data, cap, rng), downsample(model, cap, rng)
-    assert case.truth is not None
-    return data, model, case.truth, case.model_diagonal
+from frisicp_core import RegistrationConfig, RegistrationResult, downsample, register
 
 
 def registered(
@@ -55,23 +29,35 @@ def registered(
     scene_file: str = "dragon1.xyz",
     cap: int = 10_000,
     draw: int = 0,
+    from_truth: bool = False,
 ) -> tuple[RegistrationResult, PoseErrors]:
-    """The case of :func:`case_clouds` registered (default config), and its errors."""
-    data, model, truth, diagonal = case_clouds(suite, index, share, scale, reverse, scene_file, cap, draw)
-    result = register(data, model)
-    return result, pose_errors(result.similarity, truth, data, diagonal)
+    """benchmarks/trustworthy.py's case ``suite``/``scene_file``/``index`` (both clouds capped at
+    ``cap`` points, 0: full resolution; its seed, salted by ``draw``) registered, cold or
+    ``from_truth`` (warm), and its errors."""
+    shared_file(f"bunny/{scene_file}" if scene_file.startswith("bun") else f"real/{scene_file}")
+    salt = f"/draw {draw}" if draw else ""
+    rng = np.random.default_rng(zlib.crc32(f"{suite}/{scene_file}/{index}/{cap}{salt}".encode()))
+    scene = scenes.object_cloud(SHARED_DATA, scene_file)
+    assert float(rng.choice(PAPER_SCALES)) == scale
+    case = scenes.crop_case(scene, scene_file, share, scale, rng, reverse=reverse)
+    data, model = case.data, case.model
+    if cap:
+        data, model = downsample(data, cap, rng), downsample(model, cap, rng)
+    assert case.truth is not None
+    result = register(
+        data, model, RegistrationConfig(initial=case.truth) if from_truth else RegistrationConfig()
+    )
+    return result, pose_errors(result.similarity, case.truth, data, case.model_diagonal)
 
 
 def assert_found(suite: str, index: int, share: float, scale: float, reverse: bool = False) -> None:
-    """The dragon's case (:func:`case_clouds`) is registered right, and reliable, or refused only
+    """The dragon's case (:func:`registered`) is registered right, and reliable, or refused only
     for a rival within the ambiguity margin, or for sigmas past the tolerance as the truth itself
     is when started there (the split halves draw from their own stream, so both are sized alike)."""
-    data, model, truth, diagonal = case_clouds(suite, index, share, scale, reverse)
-    result = register(data, model)
-    errors = pose_errors(result.similarity, truth, data, diagonal)
+    result, errors = registered(suite, index, share, scale, reverse)
     assert errors.rotation_deg < 1.0 and errors.scale < 0.01 and errors.translation < 0.005
     if result.reason.startswith("not determined"):
-        at_truth = register(data, model, RegistrationConfig(initial=truth))
+        at_truth, _ = registered(suite, index, share, scale, reverse, from_truth=True)
         assert at_truth.reason.startswith("not determined"), (result.reason, at_truth.reason)
     else:
         assert result.reliable or result.reason.startswith("ambiguous:"), result.reason
