@@ -33,7 +33,9 @@ def registered(
 ) -> tuple[RegistrationResult, PoseErrors]:
     """benchmarks/trustworthy.py's case ``suite``/``scene_file``/``index`` (both clouds capped at
     ``cap`` points, 0: full resolution; its seed, salted by ``draw``) registered, cold or
-    ``from_truth`` (warm), and its errors."""
+    ``from_truth`` (warm; ``register`` retries an unreliable warm start cold and keeps the
+    better, so where the cold answer is refused, as in :func:`assert_found`, the result is
+    reliable only if the start at the truth is), and its errors."""
     shared_file(f"bunny/{scene_file}" if scene_file.startswith("bun") else f"real/{scene_file}")
     salt = f"/draw {draw}" if draw else ""
     rng = np.random.default_rng(zlib.crc32(f"{suite}/{scene_file}/{index}/{cap}{salt}".encode()))
