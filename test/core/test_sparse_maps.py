@@ -62,10 +62,10 @@ def test_starts_at_the_truth_shrunk_and_turned_30_degrees_return_to_it(shrink: f
 def test_a_sparse_map_whose_screened_poses_are_all_swollen_is_found_from_below():
     """benchmarks/trustworthy.py's case "dragon2.xyz sparse s=3.05" of ``--draw 2`` (both clouds
     capped at 10,000 points; found on that held-out run, so now a development case): every pose
-    the screening and the descriptor search put forward came out 20-40 % too large and 5-15
-    degrees off, and ICP on the first dense level kept them there (RMS 0.69, refused as a misfit
-    with a rival). Shrunk by half an octave, two of them land a little below the truth's scale
-    and return to it: right and reliable (its start at the truth is both)."""
+    the screening put forward came out 20-38 % too large and 5-8 degrees off (the descriptor
+    search's, 37 degrees and more), and ICP on the first dense level kept them there (RMS 0.69,
+    refused as a misfit with a rival). Shrunk by half an octave, two of them land a little below
+    the truth's scale and return to it: right and reliable (its start at the truth is both)."""
     case, data, model = swollen_sparse_map()
     result = register(data, model)
     errors = pose_errors(result.similarity, case.truth, data, case.model_diagonal)
