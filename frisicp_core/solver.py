@@ -474,6 +474,7 @@ def compare_finalists(
     margin: float = 0.15,
     near_share: Callable[[Similarity], float] | None = None,
     finish: Callable[[Similarity], Similarity] | None = None,
+    nominable: int | None = None,
 ) -> tuple[tuple[Similarity, LevelReport, Pairs], list[Similarity]]:
     """Run every finalist of the screening on the first dense level (the coarsest points against
     the full sets) and keep the one that ends with the lowest merit: with exact nearest
@@ -497,26 +498,27 @@ def compare_finalists(
     0.4 degrees off at 13 %.
 
     Also returns the others' poses there whose merits are within ``margin`` of the winner's,
-    best first (runners-up: possible competitors)."""
+    best first (runners-up: possible competitors), of the first ``nominable`` finalists only
+    when given: the later ones may win but are no rivals of their own."""
     outcomes = []
-    for pose in finalists:
+    for index, pose in enumerate(finalists):
         history_before = len(solver.history)
         outcome = solver.run_level(0, level, pose, relative_motion=relative_motion)
-        outcomes.append((float(outcome[2].merit[0]), outcome, solver.history[history_before:]))
+        outcomes.append((float(outcome[2].merit[0]), outcome, solver.history[history_before:], index))
         del solver.history[history_before:]
     outcomes.sort(key=lambda item: item[0])
     if near_share is not None and not near_share(outcomes[0][1][0]) <= MAX_NEAR_SHARE:
-        shares = [near_share(outcome[0]) for _, outcome, _ in outcomes]
+        shares = [near_share(outcome[0]) for _, outcome, _, _ in outcomes]
         clear = next((k for k in range(1, len(outcomes)) if shares[k] <= CLEAR_NEAR_SHARE), None)
         if clear is None and finish is not None:
             finished = []
             for k in range(1, len(outcomes)):
                 if shares[k] <= MAX_NEAR_SHARE and not solver.deadline.passed():
-                    _, (pose, report, _), history = outcomes[k]
+                    _, (pose, report, _), history, index = outcomes[k]
                     pose = finish(pose)
                     pairs = solver.correspond(level, PoseBatch.of([pose]))
                     report = replace(report, rms=pairs.rms()[0])
-                    outcomes[k] = (float(pairs.merit[0]), (pose, report, pairs), history)
+                    outcomes[k] = (float(pairs.merit[0]), (pose, report, pairs), history, index)
                     finished.append(k)
             clear = min(
                 (k for k in finished if near_share(outcomes[k][1][0]) <= CLEAR_NEAR_SHARE),
@@ -525,7 +527,12 @@ def compare_finalists(
             )
         if clear is not None:
             outcomes.insert(0, outcomes.pop(clear))
-    chosen, best, history = outcomes[0]
+    chosen, best, history, _ = outcomes[0]
     solver.history.extend(history)
+    limit = len(finalists) if nominable is None else nominable
     runners_up = sorted(outcomes[1:], key=lambda item: item[0])
-    return best, [outcome[0] for merit, outcome, _ in runners_up if abs(merit - chosen) <= margin * chosen]
+    return best, [
+        outcome[0]
+        for merit, outcome, _, index in runners_up
+        if abs(merit - chosen) <= margin * chosen and index < limit
+    ]

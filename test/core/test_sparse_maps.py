@@ -11,6 +11,7 @@ import pytest
 from support.data import SHARED_DATA, shared_file
 
 from frisicp_bench import scenes
+from frisicp_bench.cases import PAPER_SCALES
 from frisicp_bench.metrics import pose_errors
 from frisicp_core import RegistrationConfig, Similarity, downsample, register
 from frisicp_core.registration import shrunk_starts
@@ -71,3 +72,23 @@ def test_a_sparse_map_whose_screened_poses_are_all_swollen_is_found_from_below()
     errors = pose_errors(result.similarity, case.truth, data, case.model_diagonal)
     assert errors.rotation_deg < 1.0 and errors.scale < 0.01 and errors.translation < 0.005
     assert result.reliable, result.reason
+
+
+@pytest.mark.real_data
+def test_a_shrunk_start_that_loses_the_comparison_is_no_rival_of_the_answer():
+    """benchmarks/trustworthy.py's case "bunny_part2.xyz 20% s=2.3" of ``--draw 3`` (crop onto
+    scene, both capped at 10,000 points; held-out, now a development case). Its start at the
+    truth is right and refused (the data do not determine it to the tolerance). When shrunk
+    starts were also nominated as rivals, one 93 degrees off was run down the levels by the
+    probes and replaced the answer: wrong (85 degrees), refused. Shrunk starts may win the
+    comparison, but only the answer's own runners-up are run down as rivals."""
+    shared_file("real/bunny_part2.xyz")
+    rng = np.random.default_rng(zlib.crc32(b"crop onto scene/bunny_part2.xyz/8/10000/draw 3"))
+    scene = scenes.object_cloud(SHARED_DATA, "bunny_part2.xyz")
+    case = scenes.crop_case(scene, "bunny_part2.xyz", 0.2, float(rng.choice(PAPER_SCALES)), rng)
+    assert case.name == "bunny_part2.xyz 20% s=2.3" and case.truth is not None
+    data, model = downsample(case.data, 10_000, rng), downsample(case.model, 10_000, rng)
+    result = register(data, model)
+    errors = pose_errors(result.similarity, case.truth, data, case.model_diagonal)
+    assert errors.rotation_deg < 1.0 and errors.scale < 0.01 and errors.translation < 0.005
+    assert not result.reliable  # 3 sigma of the rotation is about 2.7 degrees
