@@ -64,3 +64,31 @@ def test_two_samplings_of_one_surface_share_no_points() -> None:
     sets = _sets(data, model)
     identity = Similarity(1.0, np.eye(3), np.zeros(3))
     assert coincident_points(identity, sets, Candidates.at(identity, sets.data_tree, sets.model_tree)) is None
+
+
+def test_a_half_moved_to_another_pose_searches_its_own_rows_again_there() -> None:
+    """A half's later steps (refine.HALF_STEPS) are paired where the last one ended: the rows the
+    half pairs get the whole cloud's nearest at the new pose; the others are left as they were."""
+    rng = np.random.default_rng(8)
+    data, model = rng.normal(size=(7000, 3)), rng.normal(size=(9000, 3))
+    sets = _sets(data, model)
+    pose = Similarity(1.1, axis_angle_rotation([0.2, 1.0, 0.3], 0.2), [0.05, 0.0, -0.1])
+    candidates = Candidates.at(pose, sets.data_tree, sets.model_tree)
+    half, _ = half_samples(sets, rng, candidates)
+    assert half.data_half is not None and half.model_half is not None
+    other_pose = Similarity(1.12, axis_angle_rotation([0.2, 1.0, 0.3], 0.21), [0.06, 0.01, -0.1])
+
+    moved = candidates.moved(other_pose, half)
+    fresh = Candidates.at(other_pose, sets.data_tree, sets.model_tree)
+
+    assert moved.pose is other_pose
+    forward_used = half.data_half.mask[candidates.data_rows]
+    backward_used = half.model_half.mask[candidates.model_rows]
+    assert 0.4 < forward_used.mean() < 0.6 and 0.4 < backward_used.mean() < 0.6
+    for mine, theirs, old, used in (
+        (moved.forward, fresh.forward, candidates.forward, forward_used),
+        (moved.backward, fresh.backward, candidates.backward, backward_used),
+    ):
+        assert np.array_equal(mine[1][used], theirs[1][used])
+        assert np.allclose(mine[0][used], theirs[0][used])
+        assert np.array_equal(mine[1][~used], old[1][~used])
