@@ -557,17 +557,36 @@ def perturb(sim: Similarity, delta: FloatArray, centre: FloatArray) -> Similarit
     return Similarity.about(centre, scale, turn, delta[1 + r :]) @ sim
 
 
+def _stepped(sim: Similarity, delta: FloatArray, centre: FloatArray) -> Similarity | None:
+    """:func:`perturb`, or None where the step runs off: past the floats, or to a scale beyond
+    1e+-100 (pairing squares it). A direction the pairs barely constrain (the scale about a point
+    of a nearly flat patch) is held by the damping alone: on a half of a 5 % crop of rs1 one
+    step took the scale x250, the next, re-paired there, past 1e308."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        try:
+            stepped = perturb(sim, delta, centre)
+        except ValueError:
+            return None
+    return stepped if abs(np.log10(stepped.scale)) <= _SCALE_EXPONENT_LIMIT else None
+
+
+# Scales beyond 10 to this power (either way) are no pose: see _stepped.
+_SCALE_EXPONENT_LIMIT = 100.0
+
+
 @dataclass(frozen=True)
 class Polished:
     """The pose the Gauss-Newton steps reached, the pairs of its last pass, the steps taken,
-    whether the last one moved the data by less than the tolerance, and each pass's RMS
-    point-to-plane residual."""
+    whether the last one moved the data by less than the tolerance, each pass's RMS
+    point-to-plane residual, and whether the steps stopped because the next one ran off
+    (:func:`_stepped`: a direction the pairs do not fix)."""
 
     similarity: Similarity
     pairs: PlanePairs
     steps: int
     converged: bool
     history: tuple[float, ...]
+    ran_off: bool = False
 
 
 def polish(
@@ -588,7 +607,7 @@ def polish(
     lists = (NeighbourLists(sets.model_tree), NeighbourLists(sets.data_tree))
     pairs = plane_pairs(sim, sets, bidirectional, lists)
     history = [pairs.plane_rms]
-    converged = False
+    converged = ran_off = False
     taken = 0
     spread = float(
         np.sqrt(
@@ -636,7 +655,11 @@ def polish(
         if motion <= tolerance or significance <= _SETTLED:
             converged = True
             break
-        candidate = perturb(sim, delta, centre)
+        stepped = _stepped(sim, delta, centre)
+        if stepped is None:
+            ran_off = True
+            break
+        candidate = stepped
         if taken == steps and not final_pass:
             sim = candidate
             break
@@ -646,10 +669,11 @@ def polish(
             # pairs it was solved on, or one too short to beat the jitter of re-pairing (module
             # doc). The best of the other lengths that fits, else stay, so the error never
             # increases. None lowers it: the pose sits where re-pairing jitters, which is converged.
-            others = [perturb(sim, factor * delta, centre) for factor in _OTHER_LENGTHS]
+            others = [_stepped(sim, factor * delta, centre) for factor in _OTHER_LENGTHS]
             tried = [
                 (fit, other, kept)
                 for other in others
+                if other is not None
                 for kept, fit in [_tried(other, sets, bidirectional, pairs, lists)]
             ]
             fitting = [item for item in tried if item[0] <= variance]
@@ -659,7 +683,7 @@ def polish(
             _, candidate, kept = min(fitting, key=lambda item: item[0])
         sim, pairs = candidate, kept()
         history.append(pairs.plane_rms)
-    return Polished(sim, pairs, taken, converged, tuple(history))
+    return Polished(sim, pairs, taken, converged, tuple(history), ran_off)
 
 
 def _tried(
@@ -828,9 +852,11 @@ def uncertainty_of(
     coincident = coincident_points(sim, sets, candidates)
     for _ in range(SPLITS):
         first, second = half_samples(sets, rng, candidates, coincident)
-        delta = difference(
-            _half_estimate(sim, first, centroid), _half_estimate(sim, second, centroid), centroid
-        )
+        one, other = _half_estimate(sim, first, centroid), _half_estimate(sim, second, centroid)
+        if one is None or other is None:
+            spreads[:] = np.inf  # a half's steps ran off: nothing bounds the estimate
+            continue
+        delta = difference(one, other, centroid)
         spreads += [float(delta[block] @ delta[block]) / 4.0 / SPLITS for block in blocks]
     covariance = sandwich.covariance.copy()
     factors = np.ones(covariance.shape[0])
@@ -841,18 +867,31 @@ def uncertainty_of(
     return _widened(covariance, factors, centre)
 
 
-def _half_estimate(sim: Similarity, half: Sets, centroid: FloatArray) -> Similarity:
+def _half_estimate(sim: Similarity, half: Sets, centroid: FloatArray) -> Similarity | None:
     """A half's estimate: :data:`HALF_STEPS` Gauss-Newton steps from the answer ``sim``, each
-    re-paired where the last one ended (:meth:`Candidates.moved`)."""
+    re-paired where the last one ended (:meth:`Candidates.moved`); None where a step ran off
+    (:attr:`Polished.ran_off`). The steps end early once the scale is off the answer's by more
+    than :data:`_HALF_RUN_OFF` (a factor e): the spread already says the scale is not
+    determined, and steps re-paired at such a pose run off to scales past the floats (a 5 % crop
+    of rs1: x250, then x1e17)."""
     candidates = half.candidates
     assert candidates is not None
     pose = sim
     for step in range(HALF_STEPS):
         if step:
+            if abs(np.log(pose.scale / sim.scale)) > _HALF_RUN_OFF:
+                break
             candidates = candidates.moved(pose, half)
             half = replace(half, candidates=candidates)
-        pose = polish(pose, half, centroid, steps=1, final_pass=False).similarity
+        polished = polish(pose, half, centroid, steps=1, final_pass=False)
+        if polished.ran_off:
+            return None
+        pose = polished.similarity
     return pose
+
+
+# A half whose scale is off the answer's by more than this (natural log) takes no more steps.
+_HALF_RUN_OFF = 1.0
 
 
 def _widened(covariance: FloatArray, factors: FloatArray, centre: FloatArray) -> Uncertainty:
