@@ -670,7 +670,8 @@ def _probe(
     answer_share = functools.cache(lambda: level.fit(sim).best_near_share)
     centre = centroid(data)
     diagonal = float(np.linalg.norm(model.max(axis=0) - model.min(axis=0)))
-    at_answer = functools.partial(_SameAnswer(centre, diagonal, config.tolerance), sim)
+    same_answer = _SameAnswer(centre, diagonal, config.tolerance)
+    at_answer = functools.partial(same_answer, sim)
     starts = [sim, *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data))]
     poses, merits = refine.settle_rough(starts, at_answer)
     settled = poses[0]
@@ -685,7 +686,7 @@ def _probe(
     found: list[Competitor] = []
     kept: list[Similarity] = []
     for start in nominated:
-        if any(separation(start, other, centre, diagonal, config.tolerance) <= 1.0 for other in [sim, *kept]):
+        if any(same_answer(start, other) for other in [sim, *kept]):
             continue  # the answer's basin, or one already run down
         kept.append(start)
         refined, pairs = refine.down(start, at_answer)
