@@ -301,6 +301,9 @@ def record(
         rotation_deg=errors.rotation_deg,
         scale_error=errors.scale,
         translation_error=errors.translation,
+        # What the sigmas are compared with (within_3_sigma; benchmarks/widening.py reads them).
+        log_scale_error=abs(float(np.log(result.similarity.scale / truth.scale))),
+        model_diagonal=case.model_diagonal,
     )
     entry["within_3_sigma"] = within_3_sigma(result, truth, errors, case.model_diagonal)
     return entry
