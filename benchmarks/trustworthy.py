@@ -86,6 +86,15 @@ from frisicp_core.registration import _register
 
 TITLE = "Trustworthy answers on real scenes: right, or not reliable"
 CAP = 10_000
+# The committed reports (docs/NAME.json; their commands in them): draws of the development scenes
+# and of clouds the method was never looked at (benchmarks/trust_summary.py, widening.py).
+DEVELOPMENT_REPORTS = ("trustworthy", "trustworthy_fresh", "trustworthy_draw4")
+HELD_OUT_REPORTS = (
+    "trustworthy_other",
+    "trustworthy_other_full",
+    "trustworthy_other_draw5",
+    "trustworthy_other_draw6",
+)
 SCENES = ("rs1.pcd", "cturtle.pcd", "bun_zipper.ply", "dragon1.xyz")
 FULL_RESOLUTION = ("rs1.pcd", "bun_zipper.ply")
 CROP_SHARES = (0.05, 0.1, 0.2, 0.3, 0.45, 0.6)

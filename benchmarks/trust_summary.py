@@ -1,0 +1,123 @@
+"""Every trust report at once: successes, wrong-and-reliable results, calibration and the search's misses.
+
+    python benchmarks/trust_summary.py            # docs/trustworthy*.json -> docs/trust_summary.md
+    python benchmarks/trust_summary.py --quick    # the committed development report alone -> build/
+
+Reads the JSON reports of ``benchmarks/trustworthy.py`` (each written by the command stored in
+it) and registers nothing. One row per report: its cases, the results right, the successes
+(right and reliable), the wrong-and-reliable results (the failure the package must never emit),
+the right answers refused, the search's misses (refused although the start at the truth is right
+and reliable: the data determine the pose there) and the reliable results within three of their
+own sigmas per component (rotation / scale / translation). Then, per suite over the development
+draws and over the held-out ones, how often the search succeeds where the data determine the
+pose (``trustworthy.determined``): where the issue's success targets apply.
+"""
+
+from __future__ import annotations
+
+import json
+import shlex
+from pathlib import Path
+from typing import Any
+
+from trustworthy import DEVELOPMENT_REPORTS, HELD_OUT_REPORTS, determined
+
+from frisicp_bench import script
+from frisicp_bench.report import markdown_table, write_report
+
+TITLE = "Every trust report: successes, wrong and reliable, calibration, misses"
+DOCS = Path(__file__).resolve().parents[1] / "docs"
+
+
+def clouds(command: str) -> str:
+    """The draw and the scenes a report's command ran (the development scenes by default)."""
+    words = shlex.split(command)
+
+    def option(name: str, default: str) -> str:
+        return words[words.index(name) + 1] if name in words else default
+
+    scenes = option("--scenes", "development scenes").replace(",", ", ")
+    full = option("--full-resolution", "rs1.pcd,bun_zipper.ply" if "--scenes" not in words else "")
+    return f"draw {option('--draw', '0')}: {scenes}" + (f" (full: {full.replace(',', ', ')})" if full else "")
+
+
+def row(name: str, records: list[dict[str, Any]], command: str) -> list[object]:
+    known = [e for e in records if "truth_start" in e]
+    reliable = [e for e in records if e["reliable"] and e.get("within_3_sigma")]
+    misses = sum(
+        not (e["right"] and e["reliable"]) and e["truth_start"]["right"] and e["truth_start"]["reliable"]
+        for e in known
+    )
+    within = " / ".join(str(sum(e["within_3_sigma"][k] for e in reliable)) for k in range(3))
+    return [
+        f"[{name}]({name}.md)",
+        clouds(command),
+        len(records),
+        sum(bool(e.get("right")) for e in records),
+        sum(bool(e.get("right")) and e["reliable"] for e in records),
+        sum(e["reliable"] and not e.get("right") for e in records),
+        sum(bool(e.get("right")) and not e["reliable"] for e in records),
+        misses,
+        f"{within} of {len(reliable)}",
+    ]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = script.parser(__file__, __doc__, "the committed development report alone", report=True)
+    parser.add_argument(
+        "--reports", type=Path, default=DOCS, metavar="DIR", help="where the JSON reports are (docs/)"
+    )
+    args = script.parse(parser, argv)
+    groups = {"development": DEVELOPMENT_REPORTS, "held-out": HELD_OUT_REPORTS}
+    if args.quick:
+        groups = {"development": DEVELOPMENT_REPORTS[:1], "held-out": ()}
+    rows: list[list[object]] = []
+    every: dict[str, list[dict[str, Any]]] = {}
+    for group, names in groups.items():
+        every[group] = []
+        for name in names:
+            path = args.reports / f"{name}.json"
+            if not path.is_file():
+                return script.skip(args, f"no report {path}: run benchmarks/trustworthy.py first")
+            document = json.loads(path.read_text())
+            rows.append(row(name, document["records"], document["command"]))
+            every[group] += document["records"]
+    header = [
+        "report",
+        "clouds",
+        "cases",
+        "right",
+        "success (right, reliable)",
+        "wrong and reliable",
+        "right, refused",
+        "search misses (refused where determined)",
+        "reliable within 3 sigma (rot / scale / trans)",
+    ]
+    totals = [
+        f"**{group}**: {len(every[group])} cases, "
+        f"{sum(bool(e.get('right')) and e['reliable'] for e in every[group])} successes, "
+        f"{sum(e['reliable'] and not e.get('right') for e in every[group])} wrong and reliable"
+        for group in groups
+        if every[group]
+    ]
+    suites: dict[str, dict[str, list[object]]] = {}
+    for group, records in every.items():
+        for suite, cases, decided, success in determined(records)[1]:
+            suites.setdefault(str(suite), {})[group] = [cases, decided, success]
+    decided_rows = [
+        [suite, *(f"{by[g][2]} ({by[g][0]} cases)" if g in by else "-" for g in groups)]
+        for suite, by in suites.items()
+    ]
+    summary = (
+        "; ".join(totals)
+        + ".\n\nWhere the data determine the pose (the start at the truth is right and reliable), the"
+        " search's successes among those cases per suite (how many cases the suite had):\n\n"
+        + "\n".join(markdown_table(["suite", *groups], decided_rows))
+        + "\n\nPer report:"
+    )
+    write_report(args.out, TITLE, script.command_line(args), summary, (header, rows), [])
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
