@@ -14,7 +14,7 @@ clause of the reason is the verdict's "not determined to the tolerance"). Any ot
 the prior (``Uncertainty.undetermined``), which no factor touches. Per report and for the
 development and held-out groups it prints the 95th, 98th and 99th percentile of |error| / sigma
 per block (rotation angle, |log scale|, the data centroid's offset: what ``within_3_sigma``
-compares), the share within three sigmas, and the factor that would put the group's quantile at
+compares), how many reliable results lie within three sigmas, and the factor that would put the group's quantile at
 three sigmas: used x percentile / 3.
 
 The replay (``--widening S,R,T``, scale, rotation, translation): every such result's sigmas scaled
@@ -43,7 +43,9 @@ from trustworthy import DEVELOPMENT_REPORTS, HELD_OUT_REPORTS
 
 from frisicp_bench import script
 from frisicp_bench.report import write_report
+from frisicp_core import Tolerance
 from frisicp_core.refine import WIDENING
+from frisicp_core.uncertainty import SIGMAS
 
 TITLE = "The uncertainty's widening per block: error / sigma on the trust reports"
 DOCS = Path(__file__).resolve().parents[1] / "docs"
@@ -51,13 +53,12 @@ BLOCKS = ("scale", "rotation", "translation")  # refine.WIDENING's order
 # Shown as trustworthy.py's reports show them: rotation / scale / translation.
 _SHOWN = (1, 0, 2)
 PERCENTILES = (95.0, 98.0, 99.0)
-SIGMAS = 3.0
 _UNDETERMINED = "not determined to the tolerance"
 _CLAUSE = re.compile(
     _UNDETERMINED + r": 3 sigma of the (scale|rotation|translation) is ([0-9.eE+-]+)(?:deg|%)? "
     r"\(tolerance ([0-9.eE+-]+)"
 )
-_DEFAULT_TOLERANCE = {"rotation": 1.0, "scale": 0.01, "translation": 0.005}  # RegistrationConfig's
+_DEFAULT_TOLERANCE = Tolerance()  # RegistrationConfig's, which the reports ran with
 _QUICK_RECORDS = 40
 
 
@@ -98,9 +99,9 @@ def local_results(name: str, records: list[dict[str, Any]]) -> tuple[list[Local]
             continue
         diagonal = float(entry["model_diagonal"])
         limits = {
-            "rotation": _DEFAULT_TOLERANCE["rotation"],
-            "scale": _DEFAULT_TOLERANCE["scale"],
-            "translation": _DEFAULT_TOLERANCE["translation"] * diagonal,
+            "rotation": _DEFAULT_TOLERANCE.rotation_deg,
+            "scale": _DEFAULT_TOLERANCE.scale,
+            "translation": _DEFAULT_TOLERANCE.translation * diagonal,
         }
         for block, _, limit in _CLAUSE.findall(entry["reason"]):
             limits[block] = float(limit) / (100.0 if block == "scale" else 1.0)
