@@ -94,6 +94,7 @@ HELD_OUT_REPORTS = (
     "trustworthy_other_full",
     "trustworthy_other_draw5",
     "trustworthy_other_draw6",
+    "trustworthy_other_draw7",
 )
 SCENES = ("rs1.pcd", "cturtle.pcd", "bun_zipper.ply", "dragon1.xyz")
 FULL_RESOLUTION = ("rs1.pcd", "bun_zipper.ply")
