@@ -42,6 +42,7 @@ def clouds(command: str) -> str:
 
 
 def row(name: str, records: list[dict[str, Any]], command: str) -> list[object]:
+    """The report ``name``'s line of the table (its ``records`` and the ``command`` that wrote them)."""
     known = [e for e in records if "truth_start" in e]
     reliable = [e for e in records if e["reliable"] and e.get("within_3_sigma")]
     misses = sum(
