@@ -42,7 +42,7 @@ import numpy as np
 from trustworthy import DEVELOPMENT_REPORTS, HELD_OUT_REPORTS
 
 from frisicp_bench import script
-from frisicp_bench.report import write_report
+from frisicp_bench.report import markdown_table, write_report
 from frisicp_core import Tolerance
 from frisicp_core.refine import WIDENING
 from frisicp_core.uncertainty import SIGMAS
@@ -163,6 +163,7 @@ def replay_row(label: str, results: list[Local], wrong_now: int, factors: np.nda
 
 
 def parse_factors(text: str) -> np.ndarray:
+    """Three positive factors from "S,R,T" (scale, rotation, translation: refine.WIDENING's order)."""
     values = np.array([float(v) for v in text.split(",")])
     if values.shape != (3,) or not np.all(np.isfinite(values)) or np.any(values <= 0):
         raise argparse.ArgumentTypeError(f"three positive factors (scale,rotation,translation), got {text!r}")
@@ -239,11 +240,17 @@ def main(argv: list[str] | None = None) -> int:
         "reliable within 3 sigma (rot / scale / trans)",
         f"factors putting p{args.quantile:g} at 3 sigma (rot / scale / trans)",
     ]
-    replay = [
-        "| report | successes | replayed | wrong and reliable | replayed | replayed reliable within 3 sigma (rot / scale / trans) |",
-        "|---|---|---|---|---|---|",
-        *("| " + " | ".join(str(c) for c in row) + " |" for row in replay_rows),
-    ]
+    replay = markdown_table(
+        [
+            "report",
+            "successes",
+            "replayed",
+            "wrong and reliable",
+            "replayed",
+            "replayed reliable within 3 sigma (rot / scale / trans)",
+        ],
+        replay_rows,
+    )
     summary = (
         f"Factors used by the reports: {' / '.join(f'{w:g}' for w in args.used)} (scale / rotation /"
         f" translation); replayed: {' / '.join(f'{w:g}' for w in proposed)}. The replay (the script's"
