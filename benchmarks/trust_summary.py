@@ -20,13 +20,12 @@ import shlex
 from pathlib import Path
 from typing import Any
 
-from trustworthy import DEVELOPMENT_REPORTS, HELD_OUT_REPORTS, determined
+from trustworthy import DEVELOPMENT_REPORTS, HELD_OUT_REPORTS, REPORTS_DIR, determined, search_misses
 
 from frisicp_bench import script
 from frisicp_bench.report import markdown_table, write_report
 
 TITLE = "Every trust report: successes, wrong and reliable, calibration, misses"
-DOCS = Path(__file__).resolve().parents[1] / "docs"
 
 
 def clouds(command: str) -> str:
@@ -43,12 +42,7 @@ def clouds(command: str) -> str:
 
 def row(name: str, records: list[dict[str, Any]], command: str) -> list[object]:
     """The report ``name``'s line of the table (its ``records`` and the ``command`` that wrote them)."""
-    known = [e for e in records if "truth_start" in e]
     reliable = [e for e in records if e["reliable"] and e.get("within_3_sigma")]
-    misses = sum(
-        not (e["right"] and e["reliable"]) and e["truth_start"]["right"] and e["truth_start"]["reliable"]
-        for e in known
-    )
     within = " / ".join(str(sum(e["within_3_sigma"][k] for e in reliable)) for k in range(3))
     return [
         f"[{name}]({name}.md)",
@@ -58,7 +52,7 @@ def row(name: str, records: list[dict[str, Any]], command: str) -> list[object]:
         sum(bool(e.get("right")) and e["reliable"] for e in records),
         sum(e["reliable"] and not e.get("right") for e in records),
         sum(bool(e.get("right")) and not e["reliable"] for e in records),
-        misses,
+        search_misses(records),
         f"{within} of {len(reliable)}",
     ]
 
@@ -66,7 +60,7 @@ def row(name: str, records: list[dict[str, Any]], command: str) -> list[object]:
 def main(argv: list[str] | None = None) -> int:
     parser = script.parser(__file__, __doc__, "the committed development report alone", report=True)
     parser.add_argument(
-        "--reports", type=Path, default=DOCS, metavar="DIR", help="where the JSON reports are (docs/)"
+        "--reports", type=Path, default=REPORTS_DIR, metavar="DIR", help="where the JSON reports are (docs/)"
     )
     args = script.parse(parser, argv)
     groups = {"development": DEVELOPMENT_REPORTS, "held-out": HELD_OUT_REPORTS}

@@ -86,8 +86,9 @@ from frisicp_core.registration import _register
 
 TITLE = "Trustworthy answers on real scenes: right, or not reliable"
 CAP = 10_000
-# The committed reports (docs/NAME.json; their commands in them): draws of the development scenes
-# and of clouds the method was never looked at (benchmarks/trust_summary.py, widening.py).
+# The committed reports (REPORTS_DIR/NAME.json; their commands in them): draws of the development
+# scenes and of clouds the method was never looked at (benchmarks/trust_summary.py, widening.py).
+REPORTS_DIR = Path(__file__).resolve().parents[1] / "docs"
 DEVELOPMENT_REPORTS = ("trustworthy", "trustworthy_fresh", "trustworthy_draw4")
 HELD_OUT_REPORTS = (
     "trustworthy_other",
@@ -312,11 +313,26 @@ def record(
         scale_error=errors.scale,
         translation_error=errors.translation,
         # What the sigmas are compared with (within_3_sigma; benchmarks/widening.py reads them).
-        log_scale_error=abs(float(np.log(result.similarity.scale / truth.scale))),
+        log_scale_error=log_scale_error(result, truth),
         model_diagonal=case.model_diagonal,
     )
     entry["within_3_sigma"] = within_3_sigma(result, truth, errors, case.model_diagonal)
     return entry
+
+
+def log_scale_error(result: RegistrationResult, truth: Similarity) -> float:
+    """|log(s / s_true)|: the scale's error as its sigma measures it (relative, symmetric)."""
+    return abs(float(np.log(result.similarity.scale / truth.scale)))
+
+
+def search_misses(records: list[dict[str, Any]]) -> int:
+    """The refused results whose start at the truth is right and reliable: there the data
+    determine the pose, so the refusal is the search's miss."""
+    return sum(
+        not e["reliable"] and e["truth_start"]["right"] and e["truth_start"]["reliable"]
+        for e in records
+        if "truth_start" in e
+    )
 
 
 def within_3_sigma(
@@ -328,7 +344,7 @@ def within_3_sigma(
     sigma = result.uncertainty
     if sigma is None:
         return None
-    log_scale = abs(float(np.log(result.similarity.scale / truth.scale)))
+    log_scale = log_scale_error(result, truth)
     return [
         bool(errors.rotation_deg <= 3.0 * sigma.rotation_deg),
         bool(log_scale <= 3.0 * sigma.scale),
@@ -458,12 +474,12 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     header, rows = summarise(records)
     wrong = sum(e["reliable"] and not e["right"] for e in records)
-    refused = [e for e in records if not e["reliable"] and "truth_start" in e]
-    undetermined = sum(not (e["truth_start"]["right"] and e["truth_start"]["reliable"]) for e in refused)
+    refused = sum(not e["reliable"] for e in records if "truth_start" in e)
+    misses = search_misses(records)
     summary = (
-        f"{len(records)} cases; {wrong} wrong and reliable. Of the {len(refused)} refused results with a"
-        f" known answer, {undetermined} are not right and reliable started at the truth either: there"
-        f" the data do not determine the pose to the tolerance; the other {len(refused) - undetermined}"
+        f"{len(records)} cases; {wrong} wrong and reliable. Of the {refused} refused results with a"
+        f" known answer, {refused - misses} are not right and reliable started at the truth either: there"
+        f" the data do not determine the pose to the tolerance; the other {misses}"
         " are the search's misses. Every case (errors, sigmas, the verdict's reason, the truth start)"
         " in the JSON file beside this one.\n\nWhere the data determine the pose (the start at the"
         " truth is right and reliable), how often the search succeeds:\n\n"

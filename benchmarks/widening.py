@@ -39,23 +39,22 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from trustworthy import DEVELOPMENT_REPORTS, HELD_OUT_REPORTS
+from trustworthy import DEVELOPMENT_REPORTS, HELD_OUT_REPORTS, REPORTS_DIR
 
 from frisicp_bench import script
 from frisicp_bench.report import markdown_table, write_report
 from frisicp_core import Tolerance
 from frisicp_core.refine import WIDENING
 from frisicp_core.uncertainty import SIGMAS
+from frisicp_core.verdict import UNDETERMINED
 
 TITLE = "The uncertainty's widening per block: error / sigma on the trust reports"
-DOCS = Path(__file__).resolve().parents[1] / "docs"
 BLOCKS = ("scale", "rotation", "translation")  # refine.WIDENING's order
 # Shown as trustworthy.py's reports show them: rotation / scale / translation.
 _SHOWN = (1, 0, 2)
 PERCENTILES = (95.0, 98.0, 99.0)
-_UNDETERMINED = "not determined to the tolerance"
 _CLAUSE = re.compile(
-    _UNDETERMINED + r": 3 sigma of the (scale|rotation|translation) is ([0-9.eE+-]+)(?:deg|%)? "
+    UNDETERMINED + f": {SIGMAS:g}" + r" sigma of the (scale|rotation|translation) is ([0-9.eE+-]+)(?:deg|%)? "
     r"\(tolerance ([0-9.eE+-]+)"
 )
 _DEFAULT_TOLERANCE = Tolerance()  # RegistrationConfig's, which the reports ran with
@@ -95,7 +94,7 @@ def local_results(name: str, records: list[dict[str, Any]]) -> tuple[list[Local]
         if "model_diagonal" not in entry:
             raise SystemExit(f"{name}: records without log_scale_error/model_diagonal: rerun trustworthy.py")
         clauses = [c.strip() for c in entry["reason"].split(";") if c.strip()]
-        if not entry["reliable"] and not all(c.startswith(_UNDETERMINED) for c in clauses):
+        if not entry["reliable"] and not all(c.startswith(UNDETERMINED) for c in clauses):
             continue
         diagonal = float(entry["model_diagonal"])
         limits = {
@@ -173,7 +172,7 @@ def parse_factors(text: str) -> np.ndarray:
 def main(argv: list[str] | None = None) -> int:
     parser = script.parser(__file__, __doc__, "the first 40 records of docs/trustworthy.json", report=True)
     parser.add_argument(
-        "--reports", type=Path, default=DOCS, metavar="DIR", help="where the reports' JSON are (docs/)"
+        "--reports", type=Path, default=REPORTS_DIR, metavar="DIR", help="where the reports' JSON are (docs/)"
     )
     parser.add_argument(
         "--development", default=",".join(DEVELOPMENT_REPORTS), help="report names (tuned on)"

@@ -46,6 +46,9 @@ MAX_NEAR_SHARE = 0.5
 # that passed MAX_NEAR_SHARE left 0.36-0.39. Only a clear fit may overrule the merit
 # (frisicp_core.solver.compare_finalists).
 CLEAR_NEAR_SHARE = 0.25
+# How a reason's clause for a component whose SIGMAS-sigma exceeds its tolerance begins (the only
+# refusal that keeps the result's local uncertainty; benchmarks/widening.py reads these clauses).
+UNDETERMINED = "not determined to the tolerance"
 
 
 @dataclass(frozen=True)
@@ -139,7 +142,7 @@ def _uncertain(uncertainty: Uncertainty, tolerance: Tolerance, diagonal: float) 
         ("translation", uncertainty.translation, tolerance.translation * diagonal, ""),
     )
     return [
-        f"not determined to the tolerance: {SIGMAS:g} sigma of the {name} is {SIGMAS * sigma:.3g}{unit}"
+        f"{UNDETERMINED}: {SIGMAS:g} sigma of the {name} is {SIGMAS * sigma:.3g}{unit}"
         f" (tolerance {limit:.3g}{unit})"
         for name, sigma, limit, unit in checks
         if not SIGMAS * sigma <= limit

@@ -6,7 +6,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from frisicp_core import RegistrationConfig, Similarity, axis_angle_rotation, bumpy_surface, register
+from frisicp_core import (
+    RegistrationConfig,
+    Similarity,
+    axis_angle_rotation,
+    bumpy_surface,
+    register,
+    rotation_angle,
+)
 from frisicp_core.rotations import exp_rotation
 from frisicp_core.uncertainty import Uncertainty
 
@@ -79,9 +86,8 @@ def test_noisy_samplings_of_one_surface_err_by_about_their_sigmas_in_every_block
         result = register(data, model)
         assert result.reliable and result.uncertainty is not None
         centroid = data.mean(axis=0)
-        turn = result.similarity.rotation @ TRUTH.rotation.T
         errors = (
-            np.degrees(np.arccos(np.clip((np.trace(turn) - 1.0) / 2.0, -1.0, 1.0))),
+            np.degrees(rotation_angle(result.similarity.rotation @ TRUTH.rotation.T)),
             abs(np.log(result.similarity.scale / TRUTH.scale)),
             np.linalg.norm(result.similarity.apply(centroid) - TRUTH.apply(centroid)),
         )
