@@ -10,7 +10,9 @@ the right answers refused, the search's misses (refused although the start at th
 and reliable: the data determine the pose there) and the reliable results within three of their
 own sigmas per component (rotation / scale / translation). Then, per suite over the development
 draws and over the held-out ones, how often the search succeeds where the data determine the
-pose (``trustworthy.determined``): where the issue's success targets apply.
+pose (``trustworthy.determined``): where the issue's success targets apply. Then every reliable
+result whose error lies beyond three of its sigmas, and per scene of the scene suites the cases,
+the results right, the successes and the cases the data determine.
 """
 
 from __future__ import annotations
@@ -26,6 +28,8 @@ from frisicp_bench import script
 from frisicp_bench.report import markdown_table, write_report
 
 TITLE = "Every trust report: successes, wrong and reliable, calibration, misses"
+COMPONENTS = ("rotation", "scale", "translation")
+SCENE_SUITES = ("crop onto scene", "scene onto crop", "sparse map onto scene", "frames", "jump")
 
 
 def clouds(command: str) -> str:
@@ -57,6 +61,53 @@ def row(name: str, records: list[dict[str, Any]], command: str) -> list[object]:
     ]
 
 
+def outside_3_sigma(name: str, records: list[dict[str, Any]]) -> list[list[object]]:
+    """The reliable results with an error beyond three of their sigmas in some component: which,
+    and by how many sigmas (rotation / scale / translation, as ``within_3_sigma`` compares)."""
+    out: list[list[object]] = []
+    for e in records:
+        if not (e["reliable"] and e.get("within_3_sigma")) or all(e["within_3_sigma"]):
+            continue
+        if "model_diagonal" not in e:
+            raise SystemExit(f"{name}: records without log_scale_error/model_diagonal: rerun trustworthy.py")
+        sigma = e["sigma"]
+        ratios = (
+            e["rotation_deg"] / sigma["rotation_deg"],
+            e["log_scale_error"] / sigma["scale"],
+            e["translation_error"] * e["model_diagonal"] / sigma["translation"],
+        )
+        beyond = ", ".join(
+            f"{component} {ratio:.2f} sigma"
+            for component, ratio, inside in zip(COMPONENTS, ratios, e["within_3_sigma"], strict=True)
+            if not inside
+        )
+        out.append([name, e["suite"], e["case"], e["cap"], beyond])
+    return out
+
+
+def per_scene(group: str, records: list[dict[str, Any]]) -> list[list[object]]:
+    """Per scene of the scene suites: cases, right, successes, and where the data determine the pose."""
+    scenes: dict[str, list[dict[str, Any]]] = {}
+    for e in records:
+        if e["suite"] in SCENE_SUITES:
+            scenes.setdefault(e["scene"], []).append(e)
+    return [
+        [
+            scene,
+            group,
+            len(cases),
+            sum(bool(e["right"]) for e in cases),
+            sum(bool(e["right"]) and e["reliable"] for e in cases),
+            sum(
+                e["truth_start"]["right"] and e["truth_start"]["reliable"]
+                for e in cases
+                if "truth_start" in e
+            ),
+        ]
+        for scene, cases in scenes.items()
+    ]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = script.parser(__file__, __doc__, "the committed development report alone", report=True)
     parser.add_argument(
@@ -67,6 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.quick:
         groups = {"development": DEVELOPMENT_REPORTS[:1], "held-out": ()}
     rows: list[list[object]] = []
+    outside: list[list[object]] = []
     every: dict[str, list[dict[str, Any]]] = {}
     for group, names in groups.items():
         every[group] = []
@@ -76,6 +128,7 @@ def main(argv: list[str] | None = None) -> int:
                 return script.skip(args, f"no report {path}: run benchmarks/trustworthy.py first")
             document = json.loads(path.read_text())
             rows.append(row(name, document["records"], document["command"]))
+            outside += outside_3_sigma(name, document["records"])
             every[group] += document["records"]
     header = [
         "report",
@@ -108,6 +161,22 @@ def main(argv: list[str] | None = None) -> int:
         + ".\n\nWhere the data determine the pose (the start at the truth is right and reliable), the"
         " search's successes among those cases per suite (how many cases the suite had):\n\n"
         + "\n".join(markdown_table(["suite", *groups], decided_rows))
+        + f"\n\nThe {len(outside)} reliable results with an error beyond 3 of their sigmas:\n\n"
+        + "\n".join(markdown_table(["report", "suite", "case", "resolution", "beyond 3 sigma"], outside))
+        + "\n\nPer scene of the scene suites (crops both ways, sparse maps, frames, jumps):\n\n"
+        + "\n".join(
+            markdown_table(
+                [
+                    "scene",
+                    "draws",
+                    "cases",
+                    "right",
+                    "success (right, reliable)",
+                    "determined (truth start right, reliable)",
+                ],
+                [line for group, records in every.items() for line in per_scene(group, records)],
+            )
+        )
         + "\n\nPer report:"
     )
     write_report(args.out, TITLE, script.command_line(args), summary, (header, rows), [])
