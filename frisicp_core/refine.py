@@ -213,13 +213,16 @@ class Candidates:
     mapped back onto the data, distances in data units). Every split half paired at ``pose``
     takes its nearest points from here instead of a tree of its own: the nearest point of a half
     is the first of a point's nearest in the whole that lies in the half. ``data_rows`` and
-    ``model_rows`` are the sampled rows, in the tables' order."""
+    ``model_rows`` are the sampled rows, in the tables' order; ``floors`` (forward, backward)
+    bound, per row, the distance at ``pose`` of every point of the other cloud not in its list
+    from below (the last listed one's distance, where the list was searched)."""
 
     pose: Similarity
     data_rows: np.ndarray
     model_rows: np.ndarray
     forward: tuple[FloatArray, np.ndarray]
     backward: tuple[FloatArray, np.ndarray]
+    floors: tuple[FloatArray, FloatArray]
 
     @classmethod
     def at(cls, pose: Similarity, data_tree: NearestNeighbors, model_tree: NearestNeighbors) -> Candidates:
@@ -227,48 +230,83 @@ class Candidates:
         data_rows, model_rows = _sample(data.shape[0]), _sample(model.shape[0])
         forward = model_tree.query_k(pose.apply(data[data_rows]), CANDIDATES)
         backward = data_tree.query_k(pose.inverse().apply(model[model_rows]), CANDIDATES)
-        return cls(pose, data_rows, model_rows, forward, backward)
+        floors = (np.sqrt(forward[0][:, -1]), np.sqrt(backward[0][:, -1]))
+        return cls(pose, data_rows, model_rows, forward, backward, floors)
 
     def moved(self, pose: Similarity, sets: Sets) -> Candidates:
-        """The candidates of the split half ``sets`` at another ``pose``: its sampled rows'
-        nearest in the whole cloud searched again there (the other rows, which the half never
-        pairs, left as they were). Re-using the lists would not do: on a full-resolution depth
-        frame a half's steps move it by as much as the spacing, and re-ranked lists kept a
-        scale 5 sigma off within 3.6 of its sigmas, searched again within 1.9."""
+        """The candidates of the split half ``sets`` at another ``pose``: for its sampled rows,
+        lists whose first point in the other half is that half's nearest at ``pose`` (the other
+        rows, which the half never pairs, left as they were and never read). Re-using the lists
+        re-ranked would not do: on a full-resolution depth frame a half's steps move it by as
+        much as the spacing, and re-ranked lists kept a scale 5 sigma off within 3.6 of its
+        sigmas, searched again within 1.9. So a row's list is kept only where it provably holds
+        that nearest (:func:`_searched`), and searched again elsewhere: the same pairs as a
+        search of every row."""
         assert sets.data_half is not None and sets.model_half is not None
         data, model = sets.data_tree.points, sets.model_tree.points
-        forward = _searched(
+        forward, forward_floor = _searched(
             sets.model_tree,
-            pose.apply,
-            data,
-            self.data_rows,
-            self.forward,
+            (self.pose.apply, pose.apply),
+            data[self.data_rows],
+            (*self.forward, self.floors[0]),
             sets.data_half.mask[self.data_rows],
+            sets.model_half.mask,
         )
-        backward = _searched(
+        backward, backward_floor = _searched(
             sets.data_tree,
-            pose.inverse().apply,
-            model,
-            self.model_rows,
-            self.backward,
+            (self.pose.inverse().apply, pose.inverse().apply),
+            model[self.model_rows],
+            (*self.backward, self.floors[1]),
             sets.model_half.mask[self.model_rows],
+            sets.data_half.mask,
         )
-        return replace(self, pose=pose, forward=forward, backward=backward)
+        return replace(
+            self, pose=pose, forward=forward, backward=backward, floors=(forward_floor, backward_floor)
+        )
 
 
 def _searched(
     tree: NearestNeighbors,
-    move: Callable[[FloatArray], FloatArray],
+    moves: tuple[Callable[[FloatArray], FloatArray], Callable[[FloatArray], FloatArray]],
     points: FloatArray,
-    rows: np.ndarray,
-    candidates: tuple[FloatArray, np.ndarray],
+    lists: tuple[FloatArray, np.ndarray, FloatArray],
     used: np.ndarray,
-) -> tuple[FloatArray, np.ndarray]:
-    """``candidates`` (squared distances, rows of ``tree``'s points; one row per sampled row
-    ``rows`` of ``points``) with the ``used`` rows' searched again, ``points`` moved by ``move``."""
-    dist_sq, index = candidates[0].copy(), candidates[1].copy()
-    dist_sq[used], index[used] = tree.query_k(move(points[rows[used]]), CANDIDATES)
-    return dist_sq, index
+    other_half: np.ndarray,
+) -> tuple[tuple[FloatArray, np.ndarray], FloatArray]:
+    """The lists (squared distances, rows of ``tree``'s points, nearest first; and their floors)
+    of the sampled ``points`` at a new pose, for the ``used`` rows, from ``lists`` found at the
+    old one (``moves``: old and new pose, applied to ``points``).
+
+    A row whose point moved by ``d`` keeps its list, its distances measured anew, when the
+    nearest listed point of ``other_half`` (a mask of ``tree``'s points) is nearer than
+    ``floor - d``: every unlisted point was at least ``floor`` away and is at least
+    ``floor - d`` now, so that listed point is the half's nearest, and fewer than
+    :data:`CANDIDATES` points are nearer than it (all of them listed), so a fresh search's list
+    holds it first in the half too. The new floor is ``floor - d``. Other rows are searched
+    again (floor: the last one's distance). On a converged answer a half's steps move the points
+    by a small part of the spacing, and most rows keep their lists."""
+    dist_sq, index, floor = (array.copy() for array in lists)
+    rows = np.flatnonzero(used)
+    before, after = moves[0](points[rows]), moves[1](points[rows])
+    shift = np.sqrt(np.einsum("ni,ni->n", after - before, after - before))
+    listed = index[rows]
+    offsets = tree.points[listed] - after[:, None, :]
+    anew = np.einsum("nki,nki->nk", offsets, offsets)
+    in_half = other_half[listed]
+    nearest_in_half = np.where(in_half, anew, np.inf).min(axis=1)
+    lowered = floor[rows] - shift
+    with np.errstate(invalid="ignore"):
+        kept = np.sqrt(nearest_in_half) < lowered
+    order = np.argsort(anew[kept], axis=1, kind="stable")
+    keep_rows = rows[kept]
+    dist_sq[keep_rows] = np.take_along_axis(anew[kept], order, axis=1)
+    index[keep_rows] = np.take_along_axis(listed[kept], order, axis=1)
+    floor[keep_rows] = lowered[kept]
+    search = rows[~kept]
+    if search.size:
+        dist_sq[search], index[search] = tree.query_k(after[~kept], CANDIDATES)
+        floor[search] = np.sqrt(dist_sq[search, -1])
+    return (dist_sq, index), floor
 
 
 @dataclass(frozen=True)

@@ -66,29 +66,56 @@ def test_two_samplings_of_one_surface_share_no_points() -> None:
     assert coincident_points(identity, sets, Candidates.at(identity, sets.data_tree, sets.model_tree)) is None
 
 
-def test_a_half_moved_to_another_pose_searches_its_own_rows_again_there() -> None:
-    """A half's later steps (refine.HALF_STEPS) are paired where the last one ended: the rows the
-    half pairs get the whole cloud's nearest at the new pose; the others are left as they were."""
+class CountingNeighbors(NearestNeighbors):
+    """A tree that counts the rows its k-nearest queries searched."""
+
+    searched = 0
+
+    def query_k(self, queries: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
+        self.searched += queries.shape[0]
+        return super().query_k(queries, k)
+
+
+def test_a_half_moved_to_another_pose_pairs_each_row_with_its_nearest_in_the_half_there() -> None:
+    """A half's later steps (refine.HALF_STEPS) are paired where the last one ended: at the new
+    pose each row the half pairs gets the partner a fresh search of the whole cloud gives, for
+    two moves in a row, whether its list was kept (it provably holds that partner) or searched
+    again; the rows the half never pairs are left as they were."""
     rng = np.random.default_rng(8)
     data, model = rng.normal(size=(7000, 3)), rng.normal(size=(9000, 3))
-    sets = _sets(data, model)
+    data_tree, model_tree = CountingNeighbors(data), CountingNeighbors(model)
+    sets = Sets(data_tree, model_tree, data_tree.spacing(), model_tree.spacing(), ModelNormals(model_tree))
     pose = Similarity(1.1, axis_angle_rotation([0.2, 1.0, 0.3], 0.2), [0.05, 0.0, -0.1])
     candidates = Candidates.at(pose, sets.data_tree, sets.model_tree)
     half, _ = half_samples(sets, rng, candidates)
     assert half.data_half is not None and half.model_half is not None
-    other_pose = Similarity(1.12, axis_angle_rotation([0.2, 1.0, 0.3], 0.21), [0.06, 0.01, -0.1])
-
-    moved = candidates.moved(other_pose, half)
-    fresh = Candidates.at(other_pose, sets.data_tree, sets.model_tree)
-
-    assert moved.pose is other_pose
+    # Moves of a few hundredths of the spacing (0.1), then of about a third of it: most rows
+    # keep their lists, the second move searches more of them again.
+    poses = [
+        Similarity(1.102, axis_angle_rotation([0.2, 1.0, 0.3], 0.201), [0.052, 0.0, -0.1]),
+        Similarity(1.12, axis_angle_rotation([0.2, 1.0, 0.3], 0.21), [0.06, 0.01, -0.1]),
+    ]
     forward_used = half.data_half.mask[candidates.data_rows]
     backward_used = half.model_half.mask[candidates.model_rows]
     assert 0.4 < forward_used.mean() < 0.6 and 0.4 < backward_used.mean() < 0.6
-    for mine, theirs, old, used in (
-        (moved.forward, fresh.forward, candidates.forward, forward_used),
-        (moved.backward, fresh.backward, candidates.backward, backward_used),
-    ):
-        assert np.array_equal(mine[1][used], theirs[1][used])
-        assert np.allclose(mine[0][used], theirs[0][used])
-        assert np.array_equal(mine[1][~used], old[1][~used])
+
+    used_rows = forward_used.sum() + backward_used.sum()
+    moved = candidates
+    for other_pose, searched_share in zip(poses, [(0.0, 0.02), (0.02, 0.2)], strict=True):
+        before = moved
+        data_tree.searched = model_tree.searched = 0
+        moved = moved.moved(other_pose, half)
+        assert searched_share[0] < (data_tree.searched + model_tree.searched) / used_rows < searched_share[1]
+        fresh = Candidates.at(other_pose, sets.data_tree, sets.model_tree)
+
+        assert moved.pose is other_pose
+        for mine, theirs, old, used, other_half in (
+            (moved.forward, fresh.forward, before.forward, forward_used, half.model_half),
+            (moved.backward, fresh.backward, before.backward, backward_used, half.data_half),
+        ):
+            mine_sq, mine_partner, mine_found = other_half.nearest((mine[0][used], mine[1][used]))
+            fresh_sq, fresh_partner, fresh_found = other_half.nearest((theirs[0][used], theirs[1][used]))
+            assert np.array_equal(mine_found, fresh_found)
+            assert np.array_equal(mine_partner, fresh_partner)
+            assert np.allclose(mine_sq, fresh_sq)
+            assert np.array_equal(mine[1][~used], old[1][~used])
