@@ -75,6 +75,11 @@ _SWAPPED_STREAM = 1
 _UNCERTAINTY_STREAM = 2
 # Most probes refined down the levels to be compared with the answer on the full sets.
 _PROBE_REFINED = 3
+# Rounds of probes around a better pose a probe found, before the search counts as unsettled: an
+# arc of 60 % of the MPEG-7 apple's outline (benchmarks/partial_contours.py, s = 0.7) was
+# probed to a better pose whose own probes found a pose better still, 3 degrees off the
+# first: that one was dropped, and a pose 12 of its sigmas off the truth came out reliable.
+_PROBE_ROUNDS = 3
 # The factor (half an octave down) by which the search's comparison also shrinks the answer so
 # far and its runners-up (see shrunk_starts).
 _SHRINK = 2.0**-0.5
@@ -372,9 +377,16 @@ def _register(
     if bidirectional and config.initial is None and config.probe and not solver.deadline.passed():
         refine = _Refiner(solver, levels, config, icp_last)
         competitors, better = _probe(refine, sim, pairs, data_set, model_set, config, runners_up)
+        for _ in range(_PROBE_ROUNDS):
+            if better is None:
+                break
+            sim, pairs, _ = better
+            competitors, better = _probe(refine, sim, pairs, data_set, model_set, config, [])
         if better is not None:
-            sim, pairs = better
-            competitors, _ = _probe(refine, sim, pairs, data_set, model_set, config, [])
+            # Each answer so far had a clearly better pose beside it: the search has not
+            # settled, and this answer is no more the pose than the next would be. The better
+            # pose is its competitor: the answer is not reliable.
+            competitors = [better[2], *competitors]
     rms, forward_rms, backward_rms = pairs.rms()
     overlap_forward = float(pairs.forward.fraction[0])
     overlap_backward = float(pairs.backward.fraction[0]) if pairs.backward is not None else float("nan")
@@ -643,13 +655,13 @@ def _probe(
     model: FloatArray,
     config: RegistrationConfig,
     runners_up: list[Similarity],
-) -> tuple[list[Competitor], tuple[Similarity, Pairs] | None]:
+) -> tuple[list[Competitor], tuple[Similarity, Pairs, Competitor] | None]:
     """Probe the answer ``sim`` (final merit ``merit``; :mod:`frisicp_core.ambiguity`): starts
     around it settle on the screening level; those that end distinct from the answer settled
     there and within :data:`_NOMINATE` of its merit there are run down the levels like the
     answer and compared with it on the finest level ICP ran. Returns the competitors within the
     margin (best first), and a distinct pose that fits clearly better (with its final
-    pairs), if any: when the answer passes the fit check, a clearly lower merit that does not
+    pairs, and as a competitor: merit ratio below 1), if any: when the answer passes the fit check, a clearly lower merit that does not
     is no better (:func:`frisicp_core.solver.compare_finalists`: reached by swelling over more of
     a cloud). A competitor is judged by the merit alone, whether or not the rival fits (a wrong
     answer that passes the fit check had rivals that did not, on 5-10 % crops of the development
@@ -695,7 +707,7 @@ def _probe(
         if apart <= 1.0 or not np.isfinite(ratio):
             continue
         if ratio < 1.0 - AMBIGUITY_MARGIN and (fits(refined) or not answer_share() <= MAX_NEAR_SHARE):
-            return [], (refined, pairs)
+            return [], (refined, pairs, Competitor(refined, ratio, apart))
         # A rival that fails the fit check matches the merit of an answer that fits clearly only by
         # swelling over more of a cloud (a crop over its scene): no competitor.
         if abs(ratio - 1.0) <= AMBIGUITY_MARGIN and (fits(refined) or not answer_share() <= CLEAR_NEAR_SHARE):

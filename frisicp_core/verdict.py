@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .ambiguity import Competitor
+from .ambiguity import AMBIGUITY_MARGIN, Competitor
 from .config import Tolerance
 from .fit import Fit
 from .overlap import MIN_FRACTION
@@ -118,8 +118,11 @@ def judge(
             f" {MAX_NEAR_SHARE:.0%})"
         )
     if competitor is not None:
+        # A competitor clearly below the answer's merit is a better pose the search did not settle
+        # on (registration's probes); within the margin, an equal one.
+        how = "better" if competitor.merit_ratio < 1.0 - AMBIGUITY_MARGIN else "as well"
         problems.append(
-            f"ambiguous: another pose {competitor.separation:.1f} tolerances away fits as well (merit"
+            f"ambiguous: another pose {competitor.separation:.1f} tolerances away fits {how} (merit"
             f" ratio {competitor.merit_ratio:.3f}; scale {competitor.similarity.scale:.6g},"
             f" turned {np.degrees(competitor.similarity.rotation_angle()):.3g} deg)"
         )
