@@ -77,3 +77,15 @@ def test_a_garbage_model_never_yields_a_reliable_result():
         garbage = garbage[np.isfinite(garbage).all(axis=1)]
         with pytest.raises(ValueError, match="model: not the points of one scene"):
             register(data, garbage)
+
+
+def test_a_rival_clearly_below_the_answers_merit_is_named_a_better_fit():
+    """A competitor below the answer's merit by more than the ambiguity margin is a better pose the
+    probes found and the search did not settle on (registration's probe rounds): the reason says
+    it fits better, not as well."""
+    answer = Similarity(2.5, np.eye(3), np.zeros(3))
+    turned = Similarity(2.5, axis_angle_rotation([0, 0, 1], 0.05), np.zeros(3))
+    better = judge(answer, **GOOD, competitor=Competitor(turned, 0.8, 3.0))
+    equal = judge(answer, **GOOD, competitor=Competitor(turned, 0.98, 3.0))
+    assert not better.reliable and "fits better (merit ratio 0.800" in better.reason
+    assert not equal.reliable and "fits as well (merit ratio 0.980" in equal.reason
