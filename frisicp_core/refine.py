@@ -296,7 +296,9 @@ def _searched(
     nearest_in_half = np.where(in_half, anew, np.inf).min(axis=1)
     lowered = floor[rows] - shift
     with np.errstate(invalid="ignore"):
-        kept = np.sqrt(nearest_in_half) < lowered
+        # A floor past the floats (a list found at a pose that threw the points past them)
+        # bounds nothing.
+        kept = (np.sqrt(nearest_in_half) < lowered) & np.isfinite(lowered)
     order = np.argsort(anew[kept], axis=1, kind="stable")
     keep_rows = rows[kept]
     dist_sq[keep_rows] = np.take_along_axis(anew[kept], order, axis=1)

@@ -660,10 +660,11 @@ def _probe(
     around it settle on the screening level; those that end distinct from the answer settled
     there and within :data:`_NOMINATE` of its merit there are run down the levels like the
     answer and compared with it on the finest level ICP ran. Returns the competitors within the
-    margin (best first), and a distinct pose that fits clearly better (with its final
-    pairs, and as a competitor: merit ratio below 1), if any: when the answer passes the fit check, a clearly lower merit that does not
-    is no better (:func:`frisicp_core.solver.compare_finalists`: reached by swelling over more of
-    a cloud). A competitor is judged by the merit alone, whether or not the rival fits (a wrong
+    margin (best first), and a distinct pose that fits clearly better (with its final pairs,
+    and as a competitor, its merit ratio below 1), if any: when the answer passes the fit
+    check, a clearly lower merit that does not is no better
+    (:func:`frisicp_core.solver.compare_finalists`: reached by swelling over more of a cloud).
+    A competitor is judged by the merit alone, whether or not the rival fits (a wrong
     answer that passes the fit check had rivals that did not, on 5-10 % crops of the development
     scenes), unless the answer fits clearly (:data:`~frisicp_core.verdict.CLEAR_NEAR_SHARE`) and
     the rival fails the check: a crop swollen over its scene, 46-114 degrees off, matched the
