@@ -22,7 +22,15 @@ import shlex
 from pathlib import Path
 from typing import Any
 
-from trustworthy import DEVELOPMENT_REPORTS, HELD_OUT_REPORTS, REPORTS_DIR, determined, search_misses
+from trustworthy import (
+    DEVELOPMENT_REPORTS,
+    HELD_OUT_REPORTS,
+    REPORTS_DIR,
+    determined,
+    pose_determined,
+    search_misses,
+    sigma_ratios,
+)
 
 from frisicp_bench import script
 from frisicp_bench.report import markdown_table, write_report
@@ -68,14 +76,7 @@ def outside_3_sigma(name: str, records: list[dict[str, Any]]) -> list[list[objec
     for e in records:
         if not (e["reliable"] and e.get("within_3_sigma")) or all(e["within_3_sigma"]):
             continue
-        if "model_diagonal" not in e:
-            raise SystemExit(f"{name}: records without log_scale_error/model_diagonal: rerun trustworthy.py")
-        sigma = e["sigma"]
-        ratios = (
-            e["rotation_deg"] / sigma["rotation_deg"],
-            e["log_scale_error"] / sigma["scale"],
-            e["translation_error"] * e["model_diagonal"] / sigma["translation"],
-        )
+        ratios = sigma_ratios(name, e)
         beyond = ", ".join(
             f"{component} {ratio:.2f} sigma"
             for component, ratio, inside in zip(COMPONENTS, ratios, e["within_3_sigma"], strict=True)
@@ -98,11 +99,7 @@ def per_scene(group: str, records: list[dict[str, Any]]) -> list[list[object]]:
             len(cases),
             sum(bool(e["right"]) for e in cases),
             sum(bool(e["right"]) and e["reliable"] for e in cases),
-            sum(
-                e["truth_start"]["right"] and e["truth_start"]["reliable"]
-                for e in cases
-                if "truth_start" in e
-            ),
+            sum(pose_determined(e) for e in cases),
         ]
         for scene, cases in scenes.items()
     ]

@@ -325,14 +325,36 @@ def log_scale_error(result: RegistrationResult, truth: Similarity) -> float:
     return abs(float(np.log(result.similarity.scale / truth.scale)))
 
 
+def pose_determined(entry: dict[str, Any]) -> bool:
+    """Whether the record's start at the truth is right and reliable: the data determine the pose
+    to the tolerance (False where no truth start was run)."""
+    start = entry.get("truth_start")
+    return bool(start is not None and start["right"] and start["reliable"])
+
+
 def search_misses(records: list[dict[str, Any]]) -> int:
-    """The refused results whose start at the truth is right and reliable: there the data
-    determine the pose, so the refusal is the search's miss."""
-    return sum(
-        not e["reliable"] and e["truth_start"]["right"] and e["truth_start"]["reliable"]
-        for e in records
-        if "truth_start" in e
+    """The refused results whose data determine the pose (:func:`pose_determined`): the
+    search's misses."""
+    return sum(not e["reliable"] and pose_determined(e) for e in records)
+
+
+def sigma_ratios(name: str, entry: dict[str, Any]) -> tuple[float, float, float]:
+    """A record's |error| / sigma per component, rotation / scale / translation (as
+    :func:`within_3_sigma` compares them; inf where a sigma is 0). ``name``: its report, named
+    when the record predates the fields the ratios need."""
+    if "model_diagonal" not in entry:
+        raise SystemExit(f"{name}: records without log_scale_error/model_diagonal: rerun trustworthy.py")
+    sigma = entry["sigma"]
+    errors = (
+        entry["rotation_deg"],
+        entry["log_scale_error"],
+        entry["translation_error"] * entry["model_diagonal"],
     )
+    sigmas = (sigma["rotation_deg"], sigma["scale"], sigma["translation"])
+    rotation, scale, translation = (
+        e / s if s > 0 else float("inf") for e, s in zip(errors, sigmas, strict=True)
+    )
+    return rotation, scale, translation
 
 
 def within_3_sigma(
@@ -370,7 +392,7 @@ def determined(records: list[dict[str, Any]]) -> tuple[list[str], list[list[obje
         groups.setdefault(name, []).append(entry)
     rows: list[list[object]] = []
     for name, group in groups.items():
-        decided = [e for e in group if e["truth_start"]["right"] and e["truth_start"]["reliable"]]
+        decided = [e for e in group if pose_determined(e)]
         success = sum(e["right"] and e["reliable"] for e in decided)
         rows.append([name, len(group), len(decided), share(success, len(decided))])
     return ["suite", "cases", "determined (truth start right, reliable)", "success among them"], rows
@@ -421,7 +443,7 @@ def summarise(records: list[dict[str, Any]]) -> tuple[list[str], list[list[objec
                 wrong_reliable,
                 right - success,
                 share(
-                    sum(e["truth_start"]["right"] and e["truth_start"]["reliable"] for e in starts),
+                    sum(pose_determined(e) for e in starts),
                     len(starts),
                 ),
                 within(reliable),

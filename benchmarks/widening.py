@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from trustworthy import DEVELOPMENT_REPORTS, HELD_OUT_REPORTS, REPORTS_DIR
+from trustworthy import DEVELOPMENT_REPORTS, HELD_OUT_REPORTS, REPORTS_DIR, sigma_ratios
 
 from frisicp_bench import script
 from frisicp_bench.report import markdown_table, write_report
@@ -91,8 +91,8 @@ def local_results(name: str, records: list[dict[str, Any]]) -> tuple[list[Local]
         sigma = entry.get("sigma")
         if sigma is None or "rotation_deg" not in entry:
             continue  # no uncertainty, or no answer exists (unrelated objects)
-        if "model_diagonal" not in entry:
-            raise SystemExit(f"{name}: records without log_scale_error/model_diagonal: rerun trustworthy.py")
+        # Rotation / scale / translation -> BLOCKS order (the swap is its own inverse).
+        ratios = np.array(sigma_ratios(name, entry))[list(_SHOWN)]
         clauses = [c.strip() for c in entry["reason"].split(";") if c.strip()]
         if not entry["reliable"] and not all(c.startswith(UNDETERMINED) for c in clauses):
             continue
@@ -105,11 +105,6 @@ def local_results(name: str, records: list[dict[str, Any]]) -> tuple[list[Local]
         for block, _, limit in _CLAUSE.findall(entry["reason"]):
             limits[block] = float(limit) / (100.0 if block == "scale" else 1.0)
         sigmas = np.array([sigma["scale"], sigma["rotation_deg"], sigma["translation"]])
-        errors = np.array(
-            [entry["log_scale_error"], entry["rotation_deg"], entry["translation_error"] * diagonal]
-        )
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ratios = np.where(sigmas > 0, errors / sigmas, np.inf)
         out.append(
             Local(
                 name,
