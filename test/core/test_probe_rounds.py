@@ -9,7 +9,7 @@ answer 3.3 and 2.95 degrees off the truth (12 of its sigmas) came out reliable."
 
 from __future__ import annotations
 
-import sys
+import os
 import zlib
 from pathlib import Path
 
@@ -21,15 +21,20 @@ from frisicp_bench.datasets import silhouette_contour
 from frisicp_bench.metrics import model_size, pose_errors
 from frisicp_core import RegistrationConfig, register
 
-sys.path.append(str(Path(__file__).resolve().parents[2] / "benchmarks"))
-from partial_contours import arc, perturbation  # a script in benchmarks/, not a package
+BENCHMARKS = Path(__file__).resolve().parents[2] / "benchmarks"
 
 
 @pytest.mark.parametrize(("seed", "scale"), [(0, 0.7), (2, 1.7)])
 def test_an_apple_arc_probed_to_a_better_pose_twice_is_not_left_wrong_and_reliable(
-    seed: int, scale: float
+    seed: int, scale: float, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     shared_file("mpeg7/apple-1.gif")
+    # The script (not a package) sets OMP_NUM_THREADS when imported: undone after the test, as
+    # test/bench/test_scripts.py does.
+    monkeypatch.setenv("OMP_NUM_THREADS", os.environ.get("OMP_NUM_THREADS", "1"))
+    monkeypatch.syspath_prepend(str(BENCHMARKS))
+    from partial_contours import arc, perturbation
+
     contour = silhouette_contour(SHARED_DATA, "apple", 1)
     piece = arc(contour, 0.6, np.random.default_rng([seed, zlib.crc32(b"apple"), 60]))
     case_rng = np.random.default_rng([seed, zlib.crc32("apple piece→full".encode()), 60, round(scale * 1000)])
