@@ -43,7 +43,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .ambiguity import AMBIGUITY_MARGIN, Competitor, probe_starts, separation
+from .ambiguity import AMBIGUITY_MARGIN, Competitor, half_turns, probe_starts, separation, symmetric_starts
 from .config import Initialization, Method, RegistrationConfig, Tolerance
 from .fit import Fit
 from .global_search import feature_starts
@@ -376,12 +376,13 @@ def _register(
     competitors: list[Competitor] = []
     if bidirectional and config.initial is None and config.probe and not solver.deadline.passed():
         refine = _Refiner(solver, levels, config, icp_last)
-        competitors, better = _probe(refine, sim, pairs, data_set, model_set, config, runners_up)
+        twins = (half_turns(data_set), half_turns(model_set))
+        competitors, better = _probe(refine, sim, pairs, data_set, model_set, config, runners_up, twins)
         for _ in range(_PROBE_ROUNDS):
             if better is None:
                 break
             sim, pairs, _ = better
-            competitors, better = _probe(refine, sim, pairs, data_set, model_set, config, [])
+            competitors, better = _probe(refine, sim, pairs, data_set, model_set, config, [], twins)
         if better is not None:
             # Each answer so far had a clearly better pose beside it: the search has not
             # settled, and this answer is no more the pose than the next would be. The better
@@ -655,6 +656,7 @@ def _probe(
     model: FloatArray,
     config: RegistrationConfig,
     runners_up: list[Similarity],
+    twins: tuple[list[Similarity], list[Similarity]],
 ) -> tuple[list[Competitor], tuple[Similarity, Pairs, Competitor] | None]:
     """Probe the answer ``sim`` (final merit ``merit``; :mod:`frisicp_core.ambiguity`): starts
     around it settle on the screening level; those that end distinct from the answer settled
@@ -670,7 +672,9 @@ def _probe(
     the rival fails the check: a crop swollen over its scene, 46-114 degrees off, matched the
     merit of right answers on 10-20 % crops once the descriptor search's agreement graph
     (:mod:`frisicp_core.compatibility`) put such poses among the runners-up. The
-    screening's ``runners_up`` are run down too. (Clouds that cover each other
+    screening's ``runners_up`` are run down too, and so are the answer's ``twins`` (the half
+    turns of the data and of the model, :func:`~frisicp_core.ambiguity.symmetric_starts`) once
+    settled like the probes. (Clouds that cover each other
     are probed as well: two views of a dome-shaped depth frame overlap all but completely, and
     still turn a few degrees either way about the sensor at the same merit.)"""
     merit = float(pairs.merit[0])
@@ -685,7 +689,11 @@ def _probe(
     diagonal = float(np.linalg.norm(model.max(axis=0) - model.min(axis=0)))
     same_answer = _SameAnswer(centre, diagonal, config.tolerance)
     at_answer = functools.partial(same_answer, sim)
-    starts = [sim, *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data))]
+    starts = [
+        sim,
+        *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data)),
+        *symmetric_starts(sim, *twins),
+    ]
     poses, merits = refine.settle_rough(starts, at_answer)
     settled = poses[0]
     ranked = sorted(
