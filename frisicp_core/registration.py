@@ -43,7 +43,15 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from numpy.typing import ArrayLike
 
-from .ambiguity import AMBIGUITY_MARGIN, Competitor, half_turns, probe_starts, separation, symmetric_starts
+from .ambiguity import (
+    Competitor,
+    half_turns,
+    merit_margin,
+    merit_noise,
+    probe_starts,
+    separation,
+    symmetric_starts,
+)
 from .config import Initialization, Method, RegistrationConfig, Tolerance
 from .fit import Fit
 from .global_search import feature_starts
@@ -678,6 +686,7 @@ def _probe(
     are probed as well: two views of a dome-shaped depth frame overlap all but completely, and
     still turn a few degrees either way about the sensor at the same merit.)"""
     merit = float(pairs.merit[0])
+    noise = merit_noise((pairs.forward, pairs.backward))
     level = refine.levels[refine.last]
 
     def fits(pose: Similarity) -> bool:
@@ -710,17 +719,22 @@ def _probe(
         if any(same_answer(start, other) for other in [sim, *kept]):
             continue  # the answer's basin, or one already run down
         kept.append(start)
-        refined, pairs = refine.down(start, at_answer)
+        refined, rival = refine.down(start, at_answer)
         apart = separation(refined, sim, centre, diagonal, config.tolerance)
-        ratio = float(pairs.merit[0]) / merit
+        ratio = float(rival.merit[0]) / merit
         if apart <= 1.0 or not np.isfinite(ratio):
             continue
-        if ratio < 1.0 - AMBIGUITY_MARGIN and (fits(refined) or not answer_share() <= MAX_NEAR_SHARE):
-            return [], (refined, pairs, Competitor(refined, ratio, apart))
+        competitor = Competitor(
+            refined, ratio, apart, merit_margin(noise, merit_noise((rival.forward, rival.backward)))
+        )
+        if competitor.better and (fits(refined) or not answer_share() <= MAX_NEAR_SHARE):
+            return [], (refined, rival, competitor)
         # A rival that fails the fit check matches the merit of an answer that fits clearly only by
         # swelling over more of a cloud (a crop over its scene): no competitor.
-        if abs(ratio - 1.0) <= AMBIGUITY_MARGIN and (fits(refined) or not answer_share() <= CLEAR_NEAR_SHARE):
-            found.append(Competitor(refined, ratio, apart))
+        if abs(ratio - 1.0) <= competitor.margin and (
+            fits(refined) or not answer_share() <= CLEAR_NEAR_SHARE
+        ):
+            found.append(competitor)
         if len(kept) == _PROBE_REFINED:
             break
     return sorted(found, key=lambda other: other.merit_ratio), None

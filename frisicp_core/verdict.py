@@ -26,7 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .ambiguity import AMBIGUITY_MARGIN, Competitor
+from .ambiguity import Competitor
 from .config import Tolerance
 from .fit import Fit
 from .overlap import MIN_FRACTION
@@ -120,7 +120,7 @@ def judge(
     if competitor is not None:
         # A competitor clearly below the answer's merit is a better pose the search did not settle
         # on (registration's probes); within the margin, an equal one.
-        how = "better" if competitor.merit_ratio < 1.0 - AMBIGUITY_MARGIN else "as well"
+        how = "better" if competitor.better else "as well"
         problems.append(
             f"ambiguous: another pose {competitor.separation:.1f} tolerances away fits {how} (merit"
             f" ratio {competitor.merit_ratio:.3f}; scale {competitor.similarity.scale:.6g},"
