@@ -36,6 +36,7 @@ the twin.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Sequence
 from dataclasses import dataclass
 
@@ -115,14 +116,22 @@ def merit_margin(answer_noise: float, rival_noise: float) -> float:
 
 
 def half_turns(points: FloatArray) -> list[Similarity]:
-    """Half turns about the centroid of ``points``: about each of its principal axes in 3-D, the
-    plane's one half turn in 2-D. A cloud symmetric under a half turn has the turn's axis among
-    its principal axes (its covariance is invariant under the turn)."""
+    """Half turns about the centroid of ``points`` in each plane of two of its principal axes: a
+    cloud symmetric under a half turn has the turn's plane spanned by principal axes (its
+    covariance is invariant under the turn). In 3-D these are the turns about each axis,
+    2 a a^T - I; in 2-D the one turn, -I."""
     mean, _, axes = principal_axes(points)
     dim = points.shape[1]
     if dim == 2:
-        return [Similarity.about(mean, 1.0, -np.eye(2))]
-    return [Similarity.about(mean, 1.0, 2.0 * np.outer(axis, axis) - np.eye(dim)) for axis in axes.T]
+        turns = [-np.eye(2)]
+    elif dim == 3:
+        turns = [2.0 * np.outer(axis, axis) - np.eye(3) for axis in axes.T]
+    else:
+        turns = [
+            np.eye(dim) - 2.0 * (np.outer(axes[:, i], axes[:, i]) + np.outer(axes[:, j], axes[:, j]))
+            for i, j in itertools.combinations(range(dim), 2)
+        ]
+    return [Similarity.about(mean, 1.0, turn) for turn in turns]
 
 
 def symmetric_starts(

@@ -1,0 +1,186 @@
+"""Synthetic man-made scenes whose structure repeats: what a robot meets indoors and what makes a
+registration ambiguous.
+
+Every scene is made of planar patches sampled uniformly by area (``density`` points per square
+metre), in metres:
+
+- *corridor*: 20 m long, 2 m wide, 2.5 m high, open at both ends (slides along itself);
+- *hall*: an empty 6 x 4 x 2.5 m room (a half turn about its vertical axis maps it onto itself);
+- *tables*: the hall with four tables placed symmetrically (the same half turn);
+- *stairs*: ten steps against a wall;
+- *shelves*: an 8 m rack of eight bays and five shelves (half turns and a 1 m period);
+- *triangle* and *pavilion*: three and six pillars on a circle over a round floor (turns of a
+  third and a sixth of a turn);
+- *corner*: three 5 m walls meeting at a corner (the same at every scale about it).
+
+The exact symmetries are the point: a crop of such a scene fits it as well at its twin's place,
+so the honest verdict is "ambiguous" (or "not determined"), whichever pose is returned.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+from frisicp_core import FloatArray
+
+from .metrics import model_size
+from .scenes import NOISE, SceneCase, box_crop, protocol_similarity, resampled
+
+KINDS = ("corridor", "hall", "tables", "stairs", "shelves", "triangle", "pavilion", "corner")
+DENSITY = 1500.0
+_HALL = (6.0, 4.0, 2.5)
+
+
+def rectangle(
+    origin: tuple[float, ...],
+    u: tuple[float, ...],
+    v: tuple[float, ...],
+    density: float,
+    rng: np.random.Generator,
+) -> FloatArray:
+    """Points uniform on the parallelogram origin + a u + b v, a and b in [0, 1]."""
+    o, du, dv = (np.asarray(x, dtype=np.float64) for x in (origin, u, v))
+    count = max(1, int(np.linalg.norm(np.cross(du, dv)) * density))
+    a, b = rng.random((2, count))
+    points: FloatArray = o + a[:, None] * du + b[:, None] * dv
+    return points
+
+
+def box_surface(
+    low: tuple[float, ...],
+    high: tuple[float, ...],
+    density: float,
+    rng: np.random.Generator,
+    *,
+    bottom: bool = True,
+) -> FloatArray:
+    """The faces of the axis-aligned box [low, high] (without its bottom face if not ``bottom``)."""
+    lo, size = np.asarray(low, dtype=np.float64), np.asarray(high, dtype=np.float64) - low
+    ex, ey, ez = (tuple(edge) for edge in np.diag(size))
+    at = tuple(lo)
+
+    def shifted(edge: tuple[float, ...]) -> tuple[float, ...]:
+        return tuple(lo + edge)
+
+    faces = [
+        rectangle(shifted(ez), ex, ey, density, rng),
+        rectangle(at, ex, ez, density, rng),
+        rectangle(shifted(ey), ex, ez, density, rng),
+        rectangle(at, ey, ez, density, rng),
+        rectangle(shifted(ex), ey, ez, density, rng),
+    ]
+    if bottom:
+        faces.append(rectangle(at, ex, ey, density, rng))
+    return np.concatenate(faces)
+
+
+def disc(radius: float, density: float, rng: np.random.Generator) -> FloatArray:
+    """Points uniform on a disc of ``radius`` in the plane z = 0 about the origin."""
+    count = int(np.pi * radius**2 * density)
+    r, angle = radius * np.sqrt(rng.random(count)), 2.0 * np.pi * rng.random(count)
+    return np.stack([r * np.cos(angle), r * np.sin(angle), np.zeros(count)], axis=1)
+
+
+def corridor(density: float, rng: np.random.Generator) -> FloatArray:
+    length, width, height = 20.0, 2.0, 2.5
+    along = (length, 0.0, 0.0)
+    return np.concatenate(
+        [
+            rectangle((0, 0, 0), along, (0, width, 0), density, rng),
+            rectangle((0, 0, height), along, (0, width, 0), density, rng),
+            rectangle((0, 0, 0), along, (0, 0, height), density, rng),
+            rectangle((0, width, 0), along, (0, 0, height), density, rng),
+        ]
+    )
+
+
+def hall(density: float, rng: np.random.Generator) -> FloatArray:
+    return box_surface((0.0, 0.0, 0.0), _HALL, density, rng)
+
+
+def tables(density: float, rng: np.random.Generator) -> FloatArray:
+    furniture = [
+        box_surface((x, y, 0.0), (x + 1.0, y + 0.6, 0.75), density, rng, bottom=False)
+        for x in (1.0, 4.0)
+        for y in (0.8, 2.6)
+    ]
+    return np.concatenate([hall(density, rng), *furniture])
+
+
+def stairs(density: float, rng: np.random.Generator) -> FloatArray:
+    steps = []
+    for k in range(10):
+        steps.append(rectangle((0, 0.3 * k, 0.2 * k), (1.5, 0, 0), (0, 0, 0.2), density, rng))
+        steps.append(rectangle((0, 0.3 * k, 0.2 * (k + 1)), (1.5, 0, 0), (0, 0.3, 0), density, rng))
+    return np.concatenate([*steps, rectangle((0, 0, 0), (0, 3.0, 0), (0, 0, 2.5), density, rng)])
+
+
+def shelves(density: float, rng: np.random.Generator) -> FloatArray:
+    parts = [rectangle((0, 0, 0), (8.0, 0, 0), (0, 0, 2.0), density, rng)]
+    parts += [rectangle((x, 0, 0), (0, 0.4, 0), (0, 0, 2.0), density, rng) for x in np.arange(9.0)]
+    parts += [rectangle((0, 0, z), (8.0, 0, 0), (0, 0.4, 0), density, rng) for z in (0.0, 0.5, 1.0, 1.5, 2.0)]
+    return np.concatenate(parts)
+
+
+def pillars(count: int) -> Callable[[float, np.random.Generator], FloatArray]:
+    def scene(density: float, rng: np.random.Generator) -> FloatArray:
+        parts = [disc(5.0, density, rng)]
+        for k in range(count):
+            angle = 2.0 * np.pi * k / count
+            x, y = 3.0 * np.cos(angle), 3.0 * np.sin(angle)
+            parts.append(
+                box_surface((x - 0.3, y - 0.3, 0.0), (x + 0.3, y + 0.3, 2.5), density, rng, bottom=False)
+            )
+        return np.concatenate(parts)
+
+    return scene
+
+
+def corner(density: float, rng: np.random.Generator) -> FloatArray:
+    return np.concatenate(
+        [
+            rectangle((0, 0, 0), (5, 0, 0), (0, 5, 0), density, rng),
+            rectangle((0, 0, 0), (5, 0, 0), (0, 0, 5), density, rng),
+            rectangle((0, 0, 0), (0, 5, 0), (0, 0, 5), density, rng),
+        ]
+    )
+
+
+SCENES: dict[str, Callable[[float, np.random.Generator], FloatArray]] = {
+    "corridor": corridor,
+    "hall": hall,
+    "tables": tables,
+    "stairs": stairs,
+    "shelves": shelves,
+    "triangle": pillars(3),
+    "pavilion": pillars(6),
+    "corner": corner,
+}
+
+
+def structured_crop_case(
+    kind: str, share: float, scale: float, rng: np.random.Generator, *, reverse: bool = False
+) -> SceneCase:
+    """A crop of ``share`` of one sampling of the scene ``kind`` onto another sampling of it
+    (``reverse``: the scene onto the crop): independent samplings, as two sensors' or two
+    visits' are, not a subset of one (a copy's shared samples make the true pose fit better
+    than its exact twins). The crop is a cube about a random point (30-100 % of its points
+    kept); both get Gaussian noise of :data:`~frisicp_bench.scenes.NOISE` of the scene's
+    diagonal; the data are moved by ``frisicp bench``'s protocol (``scale``, a turn of up to 30
+    degrees, a shift of a tenth of the model's size)."""
+    first, second = structured_scene(kind, rng), structured_scene(kind, rng)
+    noise = NOISE * model_size(first)
+    crop = resampled(box_crop(second, share, rng), rng.uniform(0.3, 1.0), noise, rng)
+    whole = resampled(first, 1.0, noise, rng)
+    data, model = (whole, crop) if reverse else (crop, whole)
+    moved = protocol_similarity(model, scale, 30.0, rng)
+    suite = "scene onto crop" if reverse else "crop onto scene"
+    name = f"{kind} {share:.0%} s={scale:.3g}"
+    return SceneCase(name, suite, moved.apply(data), model, moved.inverse())
+
+
+def structured_scene(kind: str, rng: np.random.Generator, density: float = DENSITY) -> FloatArray:
+    """The scene ``kind`` (one of :data:`KINDS`, module doc), sampled with ``rng``."""
+    return SCENES[kind](density, rng)
