@@ -44,6 +44,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from .ambiguity import (
+    AMBIGUITY_MARGIN,
     Competitor,
     half_turns,
     merit_margin,
@@ -730,7 +731,7 @@ def _probe(
     for start in [*near, *far]:
         if any(same_answer(start, other) for other in [sim, *kept]):
             continue  # the answer's basin, or one already run down
-        if len(kept) >= _PROBE_REFINED and not any(start is twin for twin in far):
+        if len(kept) >= _PROBE_REFINED and not any(start is other for other in far):
             continue  # the near nominees' share is spent; every twin is run down
         kept.append(start)
         refined, rival = refine.down(start, at_answer)
@@ -738,9 +739,13 @@ def _probe(
         ratio = float(rival.merit[0]) / merit
         if apart <= 1.0 or not np.isfinite(ratio):
             continue
-        competitor = Competitor(
-            refined, ratio, apart, merit_margin(noise, merit_noise((rival.forward, rival.backward)))
+        # A twin met other points than the answer: their merits differ by the sampling too. A
+        # near probe's rival keeps most of the answer's points, and 5 % tells them apart.
+        twin = any(start is other for other in far)
+        margin = (
+            merit_margin(noise, merit_noise((rival.forward, rival.backward))) if twin else AMBIGUITY_MARGIN
         )
+        competitor = Competitor(refined, ratio, apart, margin)
         if competitor.better and (fits(refined) or not answer_share() <= MAX_NEAR_SHARE):
             return [], (refined, rival, competitor)
         # A rival that fails the fit check matches the merit of an answer that fits clearly only by
