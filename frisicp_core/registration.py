@@ -76,10 +76,11 @@ from .window import cut
 # level, and the margin of the merit there within which it is run down the levels to be compared.
 _PROBE_PASSES = 20
 _NOMINATE = 0.15
-# The same margin for the answer's twins (frisicp_core.ambiguity.symmetric_starts), each of which
-# is run down when within it. Exact twins in synthetic symmetric rooms (independent samplings,
-# 5,000 points) settled 14-16 % above the answer there, 3 sigmas of the thinned sets' sampling
-# (merit_noise); the twins of real scenes 38 % and more (crops of rs1), 158 % (the bunny).
+# The same margin for the answer's twins (frisicp_core.ambiguity.symmetric_starts), measured where
+# they start, each of which is run down when within it. Exact twins in synthetic symmetric rooms
+# (independent samplings, 5,000 points) settled 14-16 % above the answer there, 3 sigmas of the
+# thinned sets' sampling (merit_noise); the twins of real scenes 38 % and more (crops of rs1),
+# 158 % (the bunny).
 _NOMINATE_TWIN = 0.3
 # Clouds whose estimated overlaps are both at least this cover each other (see _register).
 _COMPLETE = 0.9
@@ -686,9 +687,9 @@ def _probe(
     the rival fails the check: a crop swollen over its scene, 46-114 degrees off, matched the
     merit of right answers on 10-20 % crops once the descriptor search's agreement graph
     (:mod:`frisicp_core.compatibility`) put such poses among the runners-up. The
-    screening's ``runners_up`` are run down too, and so are the answer's ``twins`` (the half
-    turns of the data and of the model, :func:`~frisicp_core.ambiguity.symmetric_starts`) once
-    settled like the probes. (Clouds that cover each other
+    screening's ``runners_up`` are run down too, and so is every one of the answer's ``twins``
+    (the half turns of the data and of the model, :func:`~frisicp_core.ambiguity.symmetric_starts`)
+    whose merit where it starts is within :data:`_NOMINATE_TWIN` of the answer's. (Clouds that cover each other
     are probed as well: two views of a dome-shaped depth frame overlap all but completely, and
     still turn a few degrees either way about the sensor at the same merit.)"""
     merit = float(pairs.merit[0])
@@ -704,28 +705,34 @@ def _probe(
     diagonal = float(np.linalg.norm(model.max(axis=0) - model.min(axis=0)))
     same_answer = _SameAnswer(centre, diagonal, config.tolerance)
     at_answer = functools.partial(same_answer, sim)
-    local = [sim, *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data))]
-    starts = [*local, *symmetric_starts(sim, *twins)]
+    starts = [sim, *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data))]
     poses, merits = refine.settle_rough(starts, at_answer)
     settled = poses[0]
-    # A twin settles elsewhere in the clouds, on other points: its merit on the thinned level
-    # may lie past _NOMINATE by the thinned sets' sampling alone (merit_margin), and further.
-    screened = refine.solver.correspond(refine.levels.screening_level(), PoseBatch.of([settled]))
+    ranked = sorted(
+        (float(merits[k]) / float(merits[0]), k)
+        for k in range(1, len(starts))
+        if np.isfinite(merits[k])
+        and float(merits[k]) <= (1.0 + _NOMINATE) * float(merits[0])
+        and separation(poses[k], settled, centre, diagonal, config.tolerance) > 1.0
+    )
+    near = [*runners_up, *(poses[k] for _, k in ranked)]
+    # The twins are measured where they start, not settled: the twin of a converged answer in a
+    # symmetric scene is converged too, and the others would keep the batch running for all its
+    # passes (the bunny's cold registrations took 1.5x as long). A twin meets other points: its
+    # merit may lie past _NOMINATE by the thinned sets' sampling alone (merit_margin).
+    mirrored = symmetric_starts(settled, *twins)
+    screened = refine.solver.correspond(refine.levels.screening_level(), PoseBatch.of([settled, *mirrored]))
     screen_noise = merit_noise((screened.forward, screened.backward))
     twin_margin = max(_NOMINATE_TWIN, merit_margin(screen_noise, screen_noise))
-
-    def nominees(indices: range, margin: float) -> list[Similarity]:
-        ranked = sorted(
-            (float(merits[k]) / float(merits[0]), k)
-            for k in indices
-            if np.isfinite(merits[k])
-            and float(merits[k]) <= (1.0 + margin) * float(merits[0])
-            and separation(poses[k], settled, centre, diagonal, config.tolerance) > 1.0
+    far = [
+        mirrored[k - 1]
+        for _, k in sorted(
+            (float(screened.merit[k]) / float(screened.merit[0]), k)
+            for k in range(1, len(mirrored) + 1)
+            if float(screened.merit[k]) <= (1.0 + twin_margin) * float(screened.merit[0])
+            and separation(mirrored[k - 1], settled, centre, diagonal, config.tolerance) > 1.0
         )
-        return [poses[k] for _, k in ranked]
-
-    near = [*runners_up, *nominees(range(1, len(local)), _NOMINATE)]
-    far = nominees(range(len(local), len(starts)), twin_margin)
+    ]
     found: list[Competitor] = []
     kept: list[Similarity] = []
     for start in [*near, *far]:
