@@ -89,7 +89,8 @@ def line(record: dict[str, Any]) -> str:
 
 
 def refusal(reason: str) -> str:
-    """The first check a refusal names: ambiguous, not determined, misfit, not converged."""
+    """What a refusal is counted as: ambiguous when its reason names a rival, else undetermined (a
+    3 sigma past a tolerance), else unconverged, else a misfit (the fit checks)."""
     for word, name in (
         ("ambiguous", "ambiguous"),
         ("not determined", "undetermined"),
