@@ -690,7 +690,8 @@ def _probe(
     (:mod:`frisicp_core.compatibility`) put such poses among the runners-up. The
     screening's ``runners_up`` are run down too, and so is every one of the answer's ``twins``
     (the half turns of the data and of the model, :func:`~frisicp_core.ambiguity.symmetric_starts`)
-    whose merit where it starts is within :data:`_NOMINATE_TWIN` of the answer's. (Clouds that cover each other
+    whose merit where it starts is within :data:`_NOMINATE_TWIN` of the answer's, and not
+    beyond an initial guess (:func:`~frisicp_core.hypotheses.beyond_guess`). (Clouds that cover each other
     are probed as well: two views of a dome-shaped depth frame overlap all but completely, and
     still turn a few degrees either way about the sensor at the same merit.)"""
     merit = float(pairs.merit[0])
@@ -721,7 +722,13 @@ def _probe(
     # symmetric scene is converged too, and the others would keep the batch running for all its
     # passes (the bunny's cold registrations took 1.5x as long). A twin meets other points: its
     # merit may lie past _NOMINATE by the thinned sets' sampling alone (merit_margin).
-    mirrored = symmetric_starts(settled, *twins)
+    # An initial guess says the answer is not beyond it: no twin there is a rival.
+    guess = config.guess
+    mirrored = [
+        twin
+        for twin in symmetric_starts(settled, *twins)
+        if guess is None or not beyond_guess(guess, twin, refine.solver.model_radius)
+    ]
     screened = refine.solver.correspond(refine.levels.screening_level(), PoseBatch.of([settled, *mirrored]))
     screen_noise = merit_noise((screened.forward, screened.backward))
     twin_margin = max(_NOMINATE_TWIN, merit_margin(screen_noise, screen_noise))

@@ -26,8 +26,9 @@ def symmetric_surface(points: int, rng: np.random.Generator) -> np.ndarray:
 def symmetric_scene_clouds(types: MessageTypes | None = None):
     """A 2-fold symmetric surface (20,000 points) and another noisy sampling of it (3,000 points)
     turned 170 degrees and scaled 2x. Two poses 180 degrees apart fit equally well, so no blind
-    search can answer reliably: today's core answers 180 degrees off and calls it reliable (other
-    samplings: right but flagged not reliable). ``rough`` is 8 degrees and 0.1 off the truth, so
+    search can answer reliably: the core before the answer's twins were probed (2026-12-06)
+    answered 180 degrees off and called it reliable; now 180 degrees off, refused as ambiguous
+    with the truth as the competitor (other samplings: right but flagged not reliable). ``rough`` is 8 degrees and 0.1 off the truth, so
     a guess with sigmas (5 degrees, 0.1) picks the right pose.
 
     Returns (model cloud, three data clouds stamped 0.1 s apart, truth, rough).
