@@ -721,8 +721,8 @@ def _probe(
     # The twins are measured where they start, not settled: the twin of a converged answer in a
     # symmetric scene is converged too, and the others would keep the batch running for all its
     # passes (the bunny's cold registrations took 1.5x as long). A twin meets other points: its
-    # merit may lie past _NOMINATE by the thinned sets' sampling alone (merit_margin).
-    # An initial guess says the answer is not beyond it: no twin there is a rival.
+    # merit may lie past _NOMINATE by the thinned sets' sampling alone (merit_margin). An initial
+    # guess says the answer is not beyond it: no twin there is a rival.
     guess = config.guess
     mirrored = [
         twin
@@ -746,7 +746,8 @@ def _probe(
     for start in [*near, *far]:
         if any(same_answer(start, other) for other in [sim, *kept]):
             continue  # the answer's basin, or one already run down
-        if len(kept) >= _PROBE_REFINED and not any(start is other for other in far):
+        is_twin = any(start is other for other in far)
+        if len(kept) >= _PROBE_REFINED and not is_twin:
             continue  # the near nominees' share is spent; every twin is run down
         kept.append(start)
         refined, rival = refine.down(start, at_answer)
@@ -756,9 +757,8 @@ def _probe(
             continue
         # A twin met other points than the answer: their merits differ by the sampling too. A
         # near probe's rival keeps most of the answer's points, and 5 % tells them apart.
-        twin = any(start is other for other in far)
         margin = (
-            merit_margin(noise, merit_noise((rival.forward, rival.backward))) if twin else AMBIGUITY_MARGIN
+            merit_margin(noise, merit_noise((rival.forward, rival.backward))) if is_twin else AMBIGUITY_MARGIN
         )
         competitor = Competitor(refined, ratio, apart, margin)
         if competitor.better and (fits(refined) or not answer_share() <= MAX_NEAR_SHARE):
