@@ -86,20 +86,23 @@ def probe_starts(sim: Similarity, centre: FloatArray, extent: float) -> list[Sim
     return [move @ sim for move in turns + scales + shifts]
 
 
-def merit_noise(selections: Sequence[Selection | None], k: int = 0) -> float:
-    """The relative standard error of pose ``k``'s merit sqrt(psi_f + psi_b) from its kept pairs.
+def merit_noise(selections: Sequence[Selection | None], row: int = 0) -> float:
+    """The relative standard error of the merit sqrt(psi_f + psi_b) of pose ``row`` from its
+    kept pairs.
 
     Each direction's psi = e / xi^(1 + lambda) (:mod:`frisicp_core.overlap`): e, a mean of the
-    k kept squared distances, has a relative variance of about 1 / k (squared distances spread
-    about as much as their mean); xi = k / n, a count of the points that meet the other cloud,
-    (1 - xi) / k (a binomial share). Independent to first order: var(log psi) = (1 +
-    (1 + lambda)^2 (1 - xi)) / k. The sum's relative variance weighs each by its psi^2, the
-    square root halves it."""
+    m kept squared distances, has a relative variance of about 1 / m (squared distances spread
+    about as much as their mean); xi = m / n, a count of the points that meet the other cloud,
+    (1 - xi) / m (a binomial share). Independent to first order: var(log psi) = (1 +
+    (1 + lambda)^2 (1 - xi)) / m. The sum's relative variance weighs each by its psi^2, the
+    square root halves it. The count's share assumes points placed at random (a random
+    sampling, the node's random cap); a regular sampling (a contour, a full depth image) varies
+    less, and this overstates it (twice, at 20 % overlap: test/core/test_symmetric_scenes.py)."""
     terms, total = 0.0, 0.0
     for selection in selections:
         if selection is None:
             continue
-        kept, psi = float(selection.kept[k]), float(selection.merit[k])
+        kept, psi = float(selection.kept[row]), float(selection.merit[row])
         if kept <= 0 or not np.isfinite(psi):
             return float("inf")
         share = kept / selection.keep.shape[1]
