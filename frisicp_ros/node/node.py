@@ -509,8 +509,8 @@ def main(args: list[str] | None = None) -> int:
 def run_node_process(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
     """Build a node and spin it until the process is stopped: the body of a console script.
 
-    SIGINT, SIGTERM (any number of them) and external shutdown end it quietly with code 0 (see
-    ``shutdown``); a parameter value the node refuses at start-up (a bad ``--params-file``) ends
+    SIGINT, SIGTERM (any number of them) and external shutdown (also one that a publishing
+    callback runs into) end it quietly with code 0 (see ``shutdown``); a parameter value the node refuses at start-up (a bad ``--params-file``) ends
     it with code 2 and the reason, without a traceback.
     """
     signals = shutdown.install()  # before rclpy.init, which chains its handlers to this one
@@ -527,9 +527,11 @@ def run_node_process(make_node: Callable[[], Node], args: list[str] | None = Non
             rclpy.logging.get_logger(NODE_NAME).fatal(f"invalid parameters: {err}")
             return 2
     except Exception:
-        if not signals.requested:
+        if not signals.requested and rclpy.ok():
             raise
-        # A signal during start-up: rclpy's context went away under the constructor.
+        # A signal during start-up: rclpy's context went away under the constructor. Or the
+        # context was shut down from inside (bag_exit_on_end, from the replay thread) while a
+        # callback was publishing: rclpy raised "publisher's context is invalid" out of spin.
     finally:
         if node is not None:
             node.destroy_node()
