@@ -710,14 +710,20 @@ def _probe(
     starts = [sim, *probe_starts(sim, sim.apply(centre), sim.scale * rms_radius(data))]
     poses, merits = refine.settle_rough(starts, at_answer)
     settled = poses[0]
-    ranked = sorted(
-        (float(merits[k]) / float(merits[0]), k)
-        for k in range(1, len(starts))
-        if np.isfinite(merits[k])
-        and float(merits[k]) <= (1.0 + _NOMINATE) * float(merits[0])
-        and separation(poses[k], settled, centre, diagonal, config.tolerance) > 1.0
-    )
-    near = [*runners_up, *(poses[k] for _, k in ranked)]
+
+    def nominees(candidates: list[Similarity], merit_of: FloatArray, margin: float) -> list[Similarity]:
+        """``candidates[1:]`` whose merit is within ``margin`` of ``candidates[0]``'s (the
+        answer's) and that stand apart from the settled answer, lowest merit first."""
+        ranked = sorted(
+            (float(merit_of[k]) / float(merit_of[0]), k)
+            for k in range(1, len(candidates))
+            if np.isfinite(merit_of[k])
+            and float(merit_of[k]) <= (1.0 + margin) * float(merit_of[0])
+            and separation(candidates[k], settled, centre, diagonal, config.tolerance) > 1.0
+        )
+        return [candidates[k] for _, k in ranked]
+
+    near = [*runners_up, *nominees([poses[k] for k in range(len(starts))], merits, _NOMINATE)]
     # The twins are measured where they start, not settled: the twin of a converged answer in a
     # symmetric scene is converged too, and the others would keep the batch running for all its
     # passes (the bunny's cold registrations took 1.5x as long). A twin meets other points: its
@@ -725,28 +731,21 @@ def _probe(
     # guess says the answer is not beyond it: no twin there is a rival.
     guess = config.guess
     mirrored = [
-        twin
-        for twin in symmetric_starts(settled, *twins)
-        if guess is None or not beyond_guess(guess, twin, refine.solver.model_radius)
+        settled,
+        *(
+            twin
+            for twin in symmetric_starts(settled, *twins)
+            if guess is None or not beyond_guess(guess, twin, refine.solver.model_radius)
+        ),
     ]
-    screened = refine.solver.correspond(refine.levels.screening_level(), PoseBatch.of([settled, *mirrored]))
+    screened = refine.solver.correspond(refine.levels.screening_level(), PoseBatch.of(mirrored))
     screen_noise = merit_noise((screened.forward, screened.backward))
-    twin_margin = max(_NOMINATE_TWIN, merit_margin(screen_noise, screen_noise))
-    far = [
-        mirrored[k - 1]
-        for _, k in sorted(
-            (float(screened.merit[k]) / float(screened.merit[0]), k)
-            for k in range(1, len(mirrored) + 1)
-            if float(screened.merit[k]) <= (1.0 + twin_margin) * float(screened.merit[0])
-            and separation(mirrored[k - 1], settled, centre, diagonal, config.tolerance) > 1.0
-        )
-    ]
+    far = nominees(mirrored, screened.merit, max(_NOMINATE_TWIN, merit_margin(screen_noise, screen_noise)))
     found: list[Competitor] = []
     kept: list[Similarity] = []
-    for start in [*near, *far]:
+    for start, is_twin in [*((pose, False) for pose in near), *((pose, True) for pose in far)]:
         if any(same_answer(start, other) for other in [sim, *kept]):
             continue  # the answer's basin, or one already run down
-        is_twin = any(start is other for other in far)
         if len(kept) >= _PROBE_REFINED and not is_twin:
             continue  # the near nominees' share is spent; every twin is run down
         kept.append(start)

@@ -510,8 +510,9 @@ def run_node_process(make_node: Callable[[], Node], args: list[str] | None = Non
     """Build a node and spin it until the process is stopped: the body of a console script.
 
     SIGINT, SIGTERM (any number of them) and external shutdown (also one that a publishing
-    callback runs into) end it quietly with code 0 (see ``shutdown``); a parameter value the node refuses at start-up (a bad ``--params-file``) ends
-    it with code 2 and the reason, without a traceback.
+    callback runs into) end it quietly with code 0 (see ``shutdown``); a parameter value the
+    node refuses at start-up (a bad ``--params-file``) ends it with code 2 and the reason,
+    without a traceback.
     """
     signals = shutdown.install()  # before rclpy.init, which chains its handlers to this one
     rclpy.init(args=args)
