@@ -106,3 +106,14 @@ def test_a_finalist_that_joins_an_earlier_answer_is_stopped_there_and_dropped():
     # first start's own.
     assert runners_up == []
     assert len(history) == passes[0]
+
+
+def test_a_start_given_twice_runs_once():
+    # The descriptor search's rungs often refit to one pose; the copy would run the same passes
+    # into the same end (without same_basin, to stand as the answer's rival).
+    repeated = [FINALISTS[0], FINALISTS[3], FINALISTS[0], FINALISTS[3]]
+    winner, runners_up, history, passes = compared(repeated, same_answer=False)
+    once = compared(FINALISTS[::3], same_answer=False)
+    assert passes == once[3] and len(passes) == 2
+    assert np.array_equal(winner.matrix(), once[0].matrix())
+    assert runners_up == [] and len(history) == passes[0]
