@@ -129,6 +129,10 @@ class Pyramid:
         self._built: dict[int, Level] = {}
         self._targets: tuple[NearestNeighbors | None, NearestNeighbors] | None = None
 
+    def __len__(self) -> int:
+        """The number of levels (the last one holds the full sets)."""
+        return len(self._sets)
+
     def screening_level(self) -> Level:
         """The coarsest sets thinned on both sides, with their own small trees: hypotheses far
         from the truth are screened where a query is cheapest. Without dense targets this is

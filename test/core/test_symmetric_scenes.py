@@ -50,10 +50,12 @@ def _registered(kind: str, share: float, seed: int, reverse: bool):  # type: ign
     return register(data, model)
 
 
-@pytest.mark.parametrize("seed", [1, 2])
+@pytest.mark.parametrize("seed", [1, 2, 3])
 def test_the_tables_hall_onto_its_crop_is_ambiguous_with_the_half_turn_as_competitor(seed: int) -> None:
-    # Both seeds came out right and reliable before the answer's twins were probed: right only
-    # by luck, since the half-turned room fits the crop as well.
+    # Seeds 1 and 2 came out right and reliable before the answer's twins were probed: right
+    # only by luck, since the half-turned room fits the crop as well. Seed 3 came out half-turned
+    # and reliable with the twins probed: its twin (the truth) measured 15 % worse than the
+    # answer on the thinned points ICP ended on, and 2 % on all of them, where it is now judged.
     result = _registered("tables", 0.5, seed, reverse=True)
     assert not result.reliable
     assert result.reason.startswith("ambiguous")
