@@ -712,7 +712,8 @@ def _probe(
     screening's ``runners_up`` are run down too, and so is every one of the answer's ``twins``
     (the half turns of the data and of the model, :func:`~frisicp_core.ambiguity.symmetric_starts`)
     whose merit where it starts is within :data:`_NOMINATE_TWIN` of the answer's, and not
-    beyond an initial guess (:func:`~frisicp_core.hypotheses.beyond_guess`). (Clouds that cover each other
+    beyond an initial guess (:func:`~frisicp_core.hypotheses.beyond_guess`); a twin that comes
+    out worse past its margin is judged again on the full sets (:func:`_second_look`). (Clouds that cover each other
     are probed as well: two views of a dome-shaped depth frame overlap all but completely, and
     still turn a few degrees either way about the sensor at the same merit.)"""
     merit = float(pairs.merit[0])
