@@ -9,7 +9,8 @@ clouds are independent samplings, as two sensors' or two visits' are
 cube about a random point of one sampling (30-100 % of its points kept), the scene another,
 each with Gaussian noise of 0.3 % of the scene's diagonal; the data moved by ``frisicp bench``'s
 protocol (scale one of 0.5, 0.8, 1.3, 2, 3 about the model's centroid, turned up to 30 degrees,
-shifted a tenth of the model's size); both capped at 10,000 random points (the node's cap);
+shifted a tenth of the model's size); both capped at 10,000 random points (the node's cap;
+``--cap N`` another: at 5,000 the finest level ICP runs is thinned to fewer than half of them);
 default ``RegistrationConfig()``, one OpenMP thread. Scored like benchmarks/trustworthy.py (right: rotation < 1 deg, scale < 1 %,
 translation < 0.5 % of the model's diagonal).
 
@@ -23,7 +24,7 @@ These scenes were made to find the symmetric twins the probes missed
 (:func:`frisicp_core.ambiguity.symmetric_starts`); ``--draw N`` salts every seed for fresh
 crops, noise, scales and turns that the method was never looked at on.
 
-Usage: python benchmarks/structured_scenes.py [--jobs 2] [--draw N] [--out docs/structured_scenes.md]
+Usage: python benchmarks/structured_scenes.py [--jobs 2] [--draw N] [--cap N] [--out docs/structured_scenes.md]
        python benchmarks/structured_scenes.py --quick   # the tables hall's 50 % crop, both ways -> build/
 """
 
@@ -47,7 +48,7 @@ from frisicp_bench.report import case_record, write_report, wrong_but_reliable
 from frisicp_bench.structures import KINDS, structured_crop_case
 from frisicp_core import RegistrationConfig, downsample, register
 
-TITLE = "Symmetric and repetitive scenes: crops both ways, default config, capped at 10,000 points"
+TITLE = "Symmetric and repetitive scenes: crops both ways, default config, capped at {cap:,} points"
 SHARES = (0.1, 0.3, 0.5)
 SCALES = (0.5, 0.8, 1.3, 2.0, 3.0)
 DIRECTIONS = ("crop onto scene", "scene onto crop")
@@ -55,8 +56,9 @@ REPEATS = 3
 CAP = 10_000
 
 
-def score(key: tuple[str, float, str, int], draw: int) -> dict[str, Any]:
-    """Build, register and score one case (deterministic in its key and ``draw``)."""
+def score(key: tuple[str, float, str, int], draw: int, cap: int = CAP) -> dict[str, Any]:
+    """Build, register and score one case (deterministic in its key and ``draw``), both clouds
+    capped at ``cap`` points."""
     kind, share, direction, repeat = key
     salt = f"{kind}/{share}/{direction}/{repeat}" + (f"/draw {draw}" if draw else "")
     rng = np.random.default_rng(zlib.crc32(salt.encode()))
@@ -64,7 +66,7 @@ def score(key: tuple[str, float, str, int], draw: int) -> dict[str, Any]:
         kind, share, float(rng.choice(SCALES)), rng, reverse=direction == "scene onto crop"
     )
     assert built.truth is not None
-    data, model = downsample(built.data, CAP, rng), downsample(built.model, CAP, rng)
+    data, model = downsample(built.data, cap, rng), downsample(built.model, cap, rng)
     result = register(data, model, RegistrationConfig())
     errors = pose_errors(result.similarity, built.truth, data, built.model_diagonal)
     return case_record(
@@ -106,6 +108,7 @@ def main(argv: list[str] | None = None) -> int:
     command = script.parser(__file__, __doc__, quick, report=True)
     command.add_argument("--jobs", type=int, default=2, help="worker processes (default 2)")
     command.add_argument("--draw", type=int, default=0, help="salt of every seed: fresh cases (default 0)")
+    command.add_argument("--cap", type=int, default=CAP, help=f"points of each cloud at most (default {CAP})")
     args = script.parse(command, argv)
     if args.quick:
         cases = [("tables", 0.5, direction, 0) for direction in DIRECTIONS]
@@ -117,7 +120,9 @@ def main(argv: list[str] | None = None) -> int:
             for share in SHARES
             for repeat in range(REPEATS)
         ]
-    records = script.map_cases(args, functools.partial(score, draw=args.draw), cases, line)
+    if args.cap < 1:
+        command.error("--cap must be at least 1")
+    records = script.map_cases(args, functools.partial(score, draw=args.draw, cap=args.cap), cases, line)
     assert records is not None  # synthetic: no data to miss
     rows = []
     for kind in dict.fromkeys(r["scene"] for r in records):
@@ -140,7 +145,8 @@ def main(argv: list[str] | None = None) -> int:
         f"of them reliable; {sum(r['reliable'] for r in records)} reliable in all"
         + (f" (draw {args.draw}: fresh cases)." if args.draw else ".")
     )
-    write_report(args.out, TITLE, script.command_line(args), summary, (header, rows), records)
+    title = TITLE.format(cap=args.cap)
+    write_report(args.out, title, script.command_line(args), summary, (header, rows), records)
     return 0
 
 
