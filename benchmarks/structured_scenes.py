@@ -110,6 +110,8 @@ def main(argv: list[str] | None = None) -> int:
     command.add_argument("--draw", type=int, default=0, help="salt of every seed: fresh cases (default 0)")
     command.add_argument("--cap", type=int, default=CAP, help=f"points of each cloud at most (default {CAP})")
     args = script.parse(command, argv)
+    if args.cap < 1:
+        command.error("--cap must be at least 1")
     if args.quick:
         cases = [("tables", 0.5, direction, 0) for direction in DIRECTIONS]
     else:
@@ -120,8 +122,6 @@ def main(argv: list[str] | None = None) -> int:
             for share in SHARES
             for repeat in range(REPEATS)
         ]
-    if args.cap < 1:
-        command.error("--cap must be at least 1")
     records = script.map_cases(args, functools.partial(score, draw=args.draw, cap=args.cap), cases, line)
     assert records is not None  # synthetic: no data to miss
     rows = []
