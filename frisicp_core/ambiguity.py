@@ -111,6 +111,15 @@ def merit_noise(selections: Sequence[Selection | None], row: int = 0) -> float:
     return float(0.5 * np.sqrt(terms) / total) if total > 0 else float("inf")
 
 
+def merit_ratio(rival: float, answer: float) -> float:
+    """A rival's merit over the answer's (a ``Competitor.merit_ratio``). Two exact fits (both 0:
+    a copy of a grid cloud and its half turn) fit as well as each other, 1; a rival beside an
+    exact answer fits infinitely worse."""
+    if answer > 0.0:
+        return rival / answer
+    return 1.0 if rival == 0.0 else float("inf")
+
+
 def merit_margin(answer_noise: float, rival_noise: float) -> float:
     """How far a rival's merit ratio may lie from 1 and still fit as well (module doc): the
     larger of :data:`AMBIGUITY_MARGIN` and :data:`MERIT_SIGMAS` standard errors of the ratio of

@@ -49,6 +49,7 @@ from .ambiguity import (
     half_turns,
     merit_margin,
     merit_noise,
+    merit_ratio,
     probe_starts,
     separation,
     symmetric_starts,
@@ -590,7 +591,7 @@ def _second_look(refine: _Refiner, answer: Similarity, twin: Competitor) -> Comp
         return twin  # the finest level ICP ran holds the full sets: nothing more to see
     both = refine.solver.correspond(refine.levels[finest], PoseBatch.of([answer, twin.similarity]))
     selections = (both.forward, both.backward)
-    ratio = float(both.merit[1]) / float(both.merit[0])
+    ratio = merit_ratio(float(both.merit[1]), float(both.merit[0]))
     margin = merit_margin(merit_noise(selections), merit_noise(selections, row=1))
     if not (np.isfinite(ratio) and abs(ratio - 1.0) <= margin):
         return twin
@@ -737,7 +738,7 @@ def _probe(
         """``candidates[1:]`` whose merit is within ``margin`` of ``candidates[0]``'s (the
         answer's) and that stand apart from the settled answer, lowest merit first."""
         ranked = sorted(
-            (float(merit_of[k]) / float(merit_of[0]), k)
+            (merit_ratio(float(merit_of[k]), float(merit_of[0])), k)
             for k in range(1, len(candidates))
             if np.isfinite(merit_of[k])
             and float(merit_of[k]) <= (1.0 + margin) * float(merit_of[0])
@@ -773,7 +774,7 @@ def _probe(
         kept.append(start)
         refined, rival = refine.down(start, at_answer)
         apart = separation(refined, sim, centre, diagonal, config.tolerance)
-        ratio = float(rival.merit[0]) / merit
+        ratio = merit_ratio(float(rival.merit[0]), merit)
         if apart <= 1.0 or not np.isfinite(ratio):
             continue
         # A twin met other points than the answer: their merits differ by the sampling too. A

@@ -71,3 +71,15 @@ def test_a_crop_of_a_shelf_rack_is_not_reliable(seed: int) -> None:
     result = _registered("shelves", 0.5, seed, reverse=False)
     assert not result.reliable
     assert "ambiguous" in result.reason
+
+
+def test_an_exact_copy_of_a_grid_cloud_is_ambiguous_with_its_half_turn_not_a_crash() -> None:
+    # Integer grid points registered onto themselves: the answer and its half turn both fit
+    # exactly (merit 0), which once divided by zero (ZeroDivisionError out of register).
+    grid = np.stack(np.meshgrid(np.arange(20.0), np.arange(15.0), np.arange(3.0)), axis=-1).reshape(-1, 3)
+    grid = grid[np.random.default_rng(0).permutation(len(grid))]
+    result = register(grid, grid)
+    assert not result.reliable
+    assert result.reason.startswith("ambiguous")
+    assert result.competitor is not None and result.competitor.merit_ratio == 1.0
+    assert np.degrees(rotation_angle(result.competitor.similarity.rotation)) == pytest.approx(180.0)
