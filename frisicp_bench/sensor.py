@@ -1,0 +1,127 @@
+"""Depth-sensor noise: errors along each point's ray, growing with the range, depth quantised.
+
+The cases of :mod:`frisicp_bench.scenes` add isotropic Gaussian noise. A structured-light or
+stereo camera errs differently (Khoshelham and Elberink 2012, "Accuracy and resolution of Kinect
+depth data"): it measures disparity d = f b / z, so
+
+- the error lies along the ray from the camera, with sigma growing as z^2;
+- the depth is quantised: disparity comes in steps (whole or sub-pixels), so the depths a
+  camera can report are shells about it, h(z) = z^2 dd / (f b) apart. A surface seen at an
+  angle comes out as terraces.
+
+Two frames from nearby viewpoints share nearly the same shells, and registration can lock the
+terraces of one onto the other's instead of the surfaces (the pose of the "identity" motion of
+the sensor), the artefact this module lets a benchmark provoke.
+
+Both magnitudes are given as shares of a length (the scene's diagonal) at the median range of
+the cloud, so one number describes the same sensor whatever the scene's units.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from frisicp_core import FloatArray
+
+from .metrics import model_size
+from .scenes import SceneCase, box_crop, protocol_similarity, resampled
+
+# The camera stands this many times the view's size (its bounding-box diagonal) from the view's
+# centroid, in a random direction.
+CAMERA_DISTANCE = 1.5
+
+
+def depth_sensor(
+    points: FloatArray, camera: FloatArray, noise: float, step: float, rng: np.random.Generator
+) -> FloatArray:
+    """``points`` as a depth camera at ``camera`` reports them: each range quantised in disparity,
+    the depth step ``step`` at the median range (0: none), then Gaussian noise along the ray,
+    sigma ``noise`` at the median range, both growing with the range squared."""
+    offsets = points - camera
+    ranges = np.linalg.norm(offsets, axis=1)
+    rays = offsets / ranges[:, None]
+    median = float(np.median(ranges))
+    reported = ranges
+    if step > 0:
+        # Disparity 1 / z in steps of `quantum`: depth steps are z^2 * quantum apart, `step` at the
+        # median range.
+        quantum = step / median**2
+        disparity = np.maximum(np.round(1.0 / ranges / quantum), 1.0) * quantum
+        reported = 1.0 / disparity
+    reported = reported + rng.normal(size=ranges.shape) * noise * (ranges / median) ** 2
+    sensed: FloatArray = camera + rays * reported[:, None]
+    return sensed
+
+
+def averaged_voxels(points: FloatArray, edge: float) -> FloatArray:
+    """The centroid of the points in every occupied voxel of ``edge`` (the grid at the origin):
+    averaging over a depth step's width flattens the terraces of quantised depth, which
+    :func:`frisicp_core.voxel_filter` (one measured point per voxel) keeps."""
+    cells = np.floor(points / edge).astype(np.int64)
+    _, voxel, counts = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
+    sums = np.zeros((counts.size, points.shape[1]))
+    np.add.at(sums, voxel.reshape(-1), points)
+    centroids: FloatArray = sums / counts[:, None]
+    return centroids
+
+
+def camera_facing(view: FloatArray, rng: np.random.Generator) -> FloatArray:
+    """A camera :data:`CAMERA_DISTANCE` view sizes from the view's centroid, in a random direction."""
+    direction = rng.normal(size=view.shape[1])
+    camera: FloatArray = view.mean(axis=0) + CAMERA_DISTANCE * model_size(view) * direction / np.linalg.norm(
+        direction
+    )
+    return camera
+
+
+def sensed_frames_case(
+    scene: FloatArray, name: str, step: float, shift: float, noise: float, rng: np.random.Generator
+) -> SceneCase:
+    """Two overlapping depth frames: boxes of 40 % of the scene, ``shift`` of the box's width apart,
+    each re-sampled from its own half of the scene's points and seen by its own camera (the second
+    moved by the same offset as its box) with :func:`depth_sensor`'s errors (``noise`` and
+    ``step`` as shares of the scene's diagonal); the data moved by a small motion (up to 5
+    degrees, 1-5 % scale drift), as :func:`frisicp_bench.scenes.frames_case` does."""
+    diagonal = model_size(scene)
+    first = scene[rng.integers(scene.shape[0])]
+    halves = rng.random(scene.shape[0]) < 0.5
+    view = box_crop(scene[halves], 0.4, rng, first)
+    width = float(np.ptp(view, axis=0).max())
+    direction = rng.normal(size=3)
+    offset = shift * width * direction / np.linalg.norm(direction)
+    other = box_crop(scene[~halves], 0.4, rng, first + offset)
+    camera = camera_facing(view, rng)
+    data = depth_sensor(
+        resampled(view, rng.uniform(0.5, 1.0), 0.0, rng), camera, noise * diagonal, step * diagonal, rng
+    )
+    model = depth_sensor(
+        resampled(other, rng.uniform(0.5, 1.0), 0.0, rng),
+        camera + offset,
+        noise * diagonal,
+        step * diagonal,
+        rng,
+    )
+    scale = float(np.exp(rng.choice((-1.0, 1.0)) * rng.uniform(0.01, 0.05)))
+    moved = protocol_similarity(model, scale, 5.0, rng)
+    return SceneCase(f"{name} frames shift {shift:.2f}", "frames", moved.apply(data), model, moved.inverse())
+
+
+def sensed_crop_case(
+    scene: FloatArray,
+    name: str,
+    share: float,
+    scale: float,
+    step: float,
+    noise: float,
+    rng: np.random.Generator,
+) -> SceneCase:
+    """A crop of ``share`` of the scene (30-100 % of its points kept) seen by a depth camera
+    (:func:`depth_sensor`), moved by ``frisicp bench``'s protocol at ``scale`` (turned up to 30
+    degrees), onto the scene as it is (a map made otherwise)."""
+    diagonal = model_size(scene)
+    crop = resampled(box_crop(scene, share, rng), rng.uniform(0.3, 1.0), 0.0, rng)
+    sensed = depth_sensor(crop, camera_facing(crop, rng), noise * diagonal, step * diagonal, rng)
+    moved = protocol_similarity(scene, scale, 30.0, rng)
+    return SceneCase(
+        f"{name} {share:.0%} s={scale:.3g}", "crop onto scene", moved.apply(sensed), scene, moved.inverse()
+    )

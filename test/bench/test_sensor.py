@@ -1,0 +1,49 @@
+"""The depth-sensor noise model of the benchmarks (frisicp_bench.sensor)."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from frisicp_bench.sensor import depth_sensor, sensed_frames_case
+
+
+def _wall(rng: np.random.Generator) -> np.ndarray:
+    """A 4 x 3 wall at x = 2..3 (tilted), seen from the origin."""
+    u, v = rng.uniform(-2.0, 2.0, 5000), rng.uniform(-1.5, 1.5, 5000)
+    return np.stack([2.5 + 0.25 * u, u, v], axis=1)
+
+
+def test_the_errors_lie_along_the_rays_from_the_camera() -> None:
+    rng = np.random.default_rng(0)
+    wall = _wall(rng)
+    sensed = depth_sensor(wall, np.zeros(3), 0.01, 0.02, rng)
+    rays = wall / np.linalg.norm(wall, axis=1, keepdims=True)
+    across = np.linalg.norm(np.cross(sensed - wall, rays), axis=1)
+    assert across.max() < 1e-12
+    assert 0.005 < np.abs(np.linalg.norm(sensed, axis=1) - np.linalg.norm(wall, axis=1)).mean() < 0.03
+
+
+def test_without_noise_the_depths_lie_on_shells_a_step_apart_at_the_median_range() -> None:
+    rng = np.random.default_rng(1)
+    wall = _wall(rng)
+    ranges = np.linalg.norm(depth_sensor(wall, np.zeros(3), 0.0, 0.05, rng), axis=1)
+    shells = np.unique(np.round(ranges, 9))
+    assert shells.size < 60  # 5,000 points on a few dozen shells
+    median = np.median(np.linalg.norm(wall, axis=1))
+    near_median = np.diff(shells)[np.argmin(np.abs(shells[:-1] - median))]
+    assert abs(near_median - 0.05) < 0.005
+    # The steps grow with the range squared.
+    gaps = np.diff(shells)
+    assert gaps[-1] / gaps[0] > (shells[-1] / shells[0]) ** 2 * 0.8
+
+
+def test_two_sensed_frames_carry_their_truth_and_the_data_is_moved_by_it() -> None:
+    rng = np.random.default_rng(2)
+    scene = np.concatenate([_wall(rng), _wall(rng) * [1.0, 1.0, -1.0] + [0.0, 0.0, 3.5]])
+    case = sensed_frames_case(scene, "walls", 0.0, 0.1, 0.0, rng)
+    assert case.truth is not None and case.suite == "frames"
+    landed = case.truth.apply(case.data)
+    # Without noise or steps the data land on the scene (each frame is a subset of it).
+    distances = np.min(np.linalg.norm(landed[:200, None, :] - scene[None], axis=2), axis=1)
+    assert distances.max() < 1e-9
+    assert abs(np.log(case.truth.scale)) <= 0.05 + 1e-12
