@@ -13,19 +13,20 @@ capped at 10,000 random points (the node's cap):
   of the paper's 15 scales, onto the scene as it is (:func:`frisicp_bench.sensor.sensed_crop_case`).
 
 The sensor: Gaussian noise along the ray of 0.1 % of the scene's diagonal at the median range
-(a Kinect at 2 m: about 7 mm in a 5 m room), and depth steps of 0.5, 1 or 2 % of it there
-(``--steps``), both growing with the range squared. The scenes: the development ones (rs1, the
-bunny, the dragon) and three held-out clouds (the chef figure, the second dragon sampling, a real
-bunny scan); the method was never looked at on this noise model. Each case is also registered
+(a Kinect v1 at 2 m: about 6 mm, a tenth of a per cent of a 6 m room's diagonal), and depth
+steps of 0.5, 1 or 2 % of it there (``--steps``), both growing with the range squared. The
+scenes: the development ones (rs1, the bunny, the dragon) and three held-out clouds (the chef
+figure, the second dragon sampling, a real bunny scan); the method was never looked at on this
+noise model. Each case is also registered
 from the truth (warm, before the cold retry: ``trustworthy.from_truth``): right and reliable there
 says the data determine the pose to the tolerance. Scored like trustworthy.py: right = rotation
 < 1 deg, scale < 1 %, translation < 0.5 % of the model's diagonal; what must be 0 is **wrong and
 reliable**.
 
-``--average F``: what a user can do upstream about coarse steps: both clouds averaged on a voxel
-grid (:func:`frisicp_bench.sensor.averaged_voxels`, the centroid of each voxel) of edge F times
-the depth step at the median range, in each cloud's own units (the sensor's step, known in its
-frame), before the cap.
+``--average F``: what a user can do about coarse steps: both clouds averaged on a voxel grid
+(:func:`frisicp_core.voxel_centroids`, the mean of each voxel's points, as the node's and
+``frisicp bag``'s ``voxel_mode: centroid`` does) of edge F times the depth step at the median
+range, in each cloud's own units (the sensor's step, known in its frame), before the cap.
 
 Usage: python benchmarks/depth_sensor.py [--jobs 2] [--data DIR] [--steps 0.005,0.01,0.02]
                                          [--suite frames] [--average F] [--draw N]
@@ -54,8 +55,8 @@ from frisicp_bench.cases import PAPER_SCALES
 from frisicp_bench.metrics import model_size, pose_errors
 from frisicp_bench.report import case_record, write_report, wrong_but_reliable
 from frisicp_bench.scenes import object_cloud
-from frisicp_bench.sensor import averaged_voxels, sensed_crop_case, sensed_frames_case
-from frisicp_core import downsample, register
+from frisicp_bench.sensor import sensed_crop_case, sensed_frames_case
+from frisicp_core import downsample, register, voxel_centroids
 
 TITLE = "Depth-sensor noise: frames and crops with errors along the rays and quantised depth"
 SCENES = ("rs1.pcd", "bun_zipper.ply", "dragon1.xyz", "chef.pcd", "dragon2.xyz", "bunny_part2.xyz")
@@ -90,9 +91,9 @@ def score(
         edge = average * step * model_size(scene)
         # The data are in the sensor's frame, scaled by the truth's inverse; the crops' model is
         # the scene as it is, not sensed, and is left alone.
-        data = averaged_voxels(data, edge / case.truth.scale)
+        data = voxel_centroids(data, edge / case.truth.scale)
         if suite == "frames":
-            model = averaged_voxels(model, edge)
+            model = voxel_centroids(model, edge)
     data, model = downsample(data, CAP, rng), downsample(model, CAP, rng)
     result = register(data, model)
     errors = pose_errors(result.similarity, case.truth, data, case.model_diagonal)

@@ -53,18 +53,6 @@ def depth_sensor(
     return sensed
 
 
-def averaged_voxels(points: FloatArray, edge: float) -> FloatArray:
-    """The centroid of the points in every occupied voxel of ``edge`` (the grid at the origin):
-    averaging over a depth step's width flattens the terraces of quantised depth, which
-    :func:`frisicp_core.voxel_filter` (one measured point per voxel) keeps."""
-    cells = np.floor(points / edge).astype(np.int64)
-    _, voxel, counts = np.unique(cells, axis=0, return_inverse=True, return_counts=True)
-    sums = np.zeros((counts.size, points.shape[1]))
-    np.add.at(sums, voxel.reshape(-1), points)
-    centroids: FloatArray = sums / counts[:, None]
-    return centroids
-
-
 def camera_facing(view: FloatArray, rng: np.random.Generator) -> FloatArray:
     """A camera :data:`CAMERA_DISTANCE` view sizes from the view's centroid, in a random direction."""
     direction = rng.normal(size=view.shape[1])

@@ -18,7 +18,7 @@ from .shapes import bumpy_surface, closed_contour
 from .similarity import FloatArray, Similarity, axis_angle_rotation, rotation_angle
 from .uncertainty import Uncertainty
 from .verdict import Verdict, judge
-from .voxel import voxel_filter
+from .voxel import voxel_centroids, voxel_filter
 
 __all__ = [
     "BACKENDS",
@@ -53,6 +53,7 @@ __all__ = [
     "read_scan_pose",
     "register",
     "rotation_angle",
+    "voxel_centroids",
     "voxel_filter",
     "worse_than_track",
 ]

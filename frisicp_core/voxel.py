@@ -15,6 +15,14 @@ voxel's smallest point number); a sort of the packed cell keys (about 6 ms) for 
 stable sort of the cell coordinates (up to about 50 ms) when key times point count overflows
 int64 (grids of more than ~1e13 cells: ranges of ~1e5 voxels per axis and more). A coordinate whose cell number overflows
 float64 (|x / size| > 1.8e308) is kept as a voxel of its own.
+
+:func:`voxel_centroids` is the other grid: the mean of each voxel's points instead of its first.
+A depth camera reports depths on quantised shells (disparity comes in steps), so a surface seen
+at an angle comes out as terraces, and two frames from nearby viewpoints fit terrace to terrace
+better than surface to surface: their registration locks the terraces, a bias no resampling of
+the same points reveals (README, "Depth-sensor noise"). Averaging over voxels a step or two
+wide smooths the terraces out (on a 45-degree plane, two steps: a third closer to the plane); a
+first point keeps them.
 """
 
 from __future__ import annotations
@@ -38,27 +46,65 @@ def voxel_filter(points: np.ndarray, size: float) -> np.ndarray:
 
 def first_in_voxel(points: np.ndarray, size: float) -> np.ndarray:
     """(N,) mask: True for the first point (input order) of each occupied voxel."""
-    if points.ndim != 2:
-        raise ValueError(f"points must be an (N, m) array, got shape {points.shape}")
-    if not (np.isfinite(size) and size > 0):
-        raise ValueError(f"voxel size must be a positive finite number, got {size}")
-    n, dims = points.shape
+    cells, fits = _cells(points, size, "voxel_filter")
+    n = points.shape[0]
     keep = np.ones(n, dtype=bool)
     if n < 2:
         return keep
-    columns = [points[:, k] for k in range(dims)]  # column-wise: (n, m) axis-0 reductions are slow
-    if not all(np.isfinite(column).all() for column in columns):
-        raise ValueError("voxel_filter needs finite points (drop NaN/Inf first)")
-    with np.errstate(over="ignore"):
-        cells = [np.floor(column / size) for column in columns]
-    fits = np.ones(n, dtype=bool)
-    for column in cells:
-        fits &= np.isfinite(column)
     if not fits.all():  # cell numbers beyond float64: each such point is a voxel of its own
         inside = np.flatnonzero(fits)
         keep[inside] = _first_in_cells([column[inside] for column in cells])
         return keep
     return _first_in_cells(cells)
+
+
+def voxel_centroids(points: np.ndarray, size: float) -> np.ndarray:
+    """The mean of the points in every occupied voxel of edge ``size``, one row per voxel, in the
+    input order of each voxel's first point (module doc: why a mean).
+
+    ``points`` is an (N, m) array of finite values; ``size`` > 0 in the points' units. A mean
+    may lie off the surface at edges and corners by up to about half a voxel; a voxel holding
+    one point keeps it exactly. Costs a lexicographic sort of the cells (about 20 ms on 100,000
+    points, against about 1 ms for :func:`voxel_filter`)."""
+    cells, fits = _cells(points, size, "voxel_centroids")
+    n = points.shape[0]
+    if n < 2:
+        return np.array(points, dtype=np.float64)
+    inside = np.flatnonzero(fits)  # the others (cells beyond float64) are voxels of their own
+    order = inside[np.lexsort([column[inside] for column in cells[::-1]])]
+    head = np.zeros(order.size, dtype=bool)
+    if order.size:
+        head[0] = True
+    for column in cells:
+        sorted_column = column[order]
+        head[1:] |= sorted_column[1:] != sorted_column[:-1]
+    starts = np.flatnonzero(head)
+    values = np.asarray(points, dtype=np.float64)
+    sums = np.add.reduceat(values[order], starts, axis=0) if starts.size else values[:0]
+    counts = np.diff(np.append(starts, order.size))
+    # The lexicographic sort is stable: each run's head is its voxel's first point.
+    firsts = np.concatenate([order[starts], np.flatnonzero(~fits)])
+    means = np.concatenate([sums / counts[:, None], values[~fits]])
+    ordered: np.ndarray = means[np.argsort(firsts, kind="stable")]
+    return ordered
+
+
+def _cells(points: np.ndarray, size: float, caller: str) -> tuple[list[np.ndarray], np.ndarray]:
+    """The cell number of every point along each axis (float64 columns of integers), and which
+    points have cells within float64 (a coordinate beyond ``size * 1.8e308`` has none)."""
+    if points.ndim != 2:
+        raise ValueError(f"points must be an (N, m) array, got shape {points.shape}")
+    if not (np.isfinite(size) and size > 0):
+        raise ValueError(f"voxel size must be a positive finite number, got {size}")
+    columns = [points[:, k] for k in range(points.shape[1])]  # (n, m) axis-0 reductions are slow
+    if not all(np.isfinite(column).all() for column in columns):
+        raise ValueError(f"{caller} needs finite points (drop NaN/Inf first)")
+    with np.errstate(over="ignore"):
+        cells = [np.floor(column / size) for column in columns]
+    fits = np.ones(points.shape[0], dtype=bool)
+    for column in cells:
+        fits &= np.isfinite(column)
+    return cells, fits
 
 
 def _first_in_cells(cells: list[np.ndarray]) -> np.ndarray:

@@ -14,7 +14,7 @@ the pipeline passes it: a jump of the pose; the pipeline does not retry.) With `
 constant_velocity the warm start is the last result moved on by the motion between the last two
 (``frisicp_ros.stream.motion``).
 
-Clouds are read with ``read_cloud``: finite points, the optional voxel grid (``voxel_size``),
+Clouds are read with ``read_cloud``: finite points, the optional voxel grid (``voxel_size``, ``voxel_mode``),
 then, for data clouds, the random cap (``max_points``). The model is not capped: it is read once
 per model message and kept as a ``frisicp_core.PreparedModel`` at full resolution, so that every
 pair against it reuses its trees, levels and normals, and a warm-started (or guessed) scan is
@@ -173,12 +173,13 @@ class RegistrationPipeline:
     def update_settings(self, settings: PipelineSettings) -> None:
         """New settings; anything they invalidate (point caps, voxels, dims) is forgotten."""
         old = self.settings
-        if (settings.dims, settings.max_points, settings.voxel_size, settings.registration.seed) != (
-            old.dims,
-            old.max_points,
-            old.voxel_size,
-            old.registration.seed,
-        ):
+        if (
+            settings.dims,
+            settings.max_points,
+            settings.voxel_size,
+            settings.voxel_mode,
+            settings.registration.seed,
+        ) != (old.dims, old.max_points, old.voxel_size, old.voxel_mode, old.registration.seed):
             self.reset()
         self.settings = settings
 
@@ -248,7 +249,9 @@ class RegistrationPipeline:
     def _read(self, msg: CloudLayoutLike, capped: bool = True) -> CloudPoints:
         settings = self.settings
         cap = settings.max_points if capped else None
-        return read_cloud(msg, settings.dims, cap, settings.registration.seed, settings.voxel_size)
+        return read_cloud(
+            msg, settings.dims, cap, settings.registration.seed, settings.voxel_size, settings.voxel_mode
+        )
 
     def _model(self, model_msg: PointCloud2Like) -> tuple[PreparedModel, CloudPoints | None]:
         """The model prepared for registration (frisicp_core.PreparedModel), once per message: in

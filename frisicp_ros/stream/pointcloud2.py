@@ -15,11 +15,12 @@ import itertools
 import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass
+from enum import Enum
 from typing import Any, Literal, TypeVar
 
 import numpy as np
 
-from frisicp_core import Similarity, downsample, voxel_filter
+from frisicp_core import Similarity, downsample, voxel_centroids, voxel_filter
 from frisicp_ros.stream.messages import CloudLayoutLike, PointCloud2Like, PointFieldLike
 
 # sensor_msgs/PointField datatype constants (identical in rclpy and rosbags).
@@ -141,6 +142,17 @@ def _validated_fields(fields: Sequence[PointFieldLike], point_step: int) -> dict
     return by_name
 
 
+class VoxelMode(str, Enum):
+    """What the voxel grid keeps of each occupied voxel; the values are the ``voxel_mode``
+    parameter's (``frisicp_core.voxel``)."""
+
+    FIRST = "first"  # its first point: a measured point, about 1 ms per 100,000 points
+    CENTROID = "centroid"  # the mean of its points: smooths quantised depth, about 20 ms
+
+
+VOXEL_MODES: tuple[str, ...] = tuple(mode.value for mode in VoxelMode)
+
+
 @dataclass(frozen=True)
 class CloudPoints:
     """What :func:`read_cloud` made of a message: the points and what it cost.
@@ -159,21 +171,31 @@ class CloudPoints:
 
 
 def cloud_to_points(
-    msg: CloudLayoutLike, dims: int = 3, max_points: int | None = None, seed: int = 0, voxel_size: float = 0.0
+    msg: CloudLayoutLike,
+    dims: int = 3,
+    max_points: int | None = None,
+    seed: int = 0,
+    voxel_size: float = 0.0,
+    voxel_mode: str = VoxelMode.FIRST.value,
 ) -> np.ndarray:
     """The finite points of a PointCloud2 as a C-contiguous (N, dims) float64 array.
 
     Organized clouds are flattened row by row; points with a NaN/Inf coordinate are dropped.
-    With ``voxel_size`` > 0 only the first point of each occupied voxel is kept
-    (``frisicp_core.voxel``). Above ``max_points`` (None or 0: no cap) a uniformly random
-    subset in the original order is kept, reproducible from ``seed``. Raises CloudError for
-    malformed, empty and all-NaN clouds.
+    With ``voxel_size`` > 0 one point per occupied voxel is kept (``frisicp_core.voxel``): its
+    first point, or with ``voxel_mode`` "centroid" the mean of its points. Above ``max_points``
+    (None or 0: no cap) a uniformly random subset in the original order is kept, reproducible
+    from ``seed``. Raises CloudError for malformed, empty and all-NaN clouds.
     """
-    return read_cloud(msg, dims, max_points, seed, voxel_size).points
+    return read_cloud(msg, dims, max_points, seed, voxel_size, voxel_mode).points
 
 
 def read_cloud(
-    msg: CloudLayoutLike, dims: int = 3, max_points: int | None = None, seed: int = 0, voxel_size: float = 0.0
+    msg: CloudLayoutLike,
+    dims: int = 3,
+    max_points: int | None = None,
+    seed: int = 0,
+    voxel_size: float = 0.0,
+    voxel_mode: str = VoxelMode.FIRST.value,
 ) -> CloudPoints:
     """:func:`cloud_to_points` with its counts and timings.
 
@@ -182,6 +204,8 @@ def read_cloud(
     copied into float64. The subset is the one ``frisicp_core.downsample`` draws from the finite
     points with ``default_rng(seed)``, so the result does not depend on the order of the steps.
     """
+    if voxel_mode not in VOXEL_MODES:
+        raise ValueError(f"voxel_mode must be one of {', '.join(VOXEL_MODES)}, got {voxel_mode!r}")
     started = time.perf_counter()
     views = coordinate_views(msg, dims)
     total = int(msg.height) * int(msg.width)
@@ -196,7 +220,8 @@ def read_cloud(
     if voxel_size > 0:
         points = _gather(columns, finite_index)
         converted = time.perf_counter()
-        points = voxel_filter(points, voxel_size)
+        grid = voxel_centroids if voxel_mode == VoxelMode.CENTROID.value else voxel_filter
+        points = grid(points, voxel_size)
         voxels = points.shape[0]
         if max_points:
             points = downsample(points, int(max_points), rng)

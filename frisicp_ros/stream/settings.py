@@ -31,6 +31,7 @@ from typing import Any
 from frisicp_core import BACKENDS, RegistrationConfig
 from frisicp_ros.stream.motion import MOTION_MODELS, MotionModel
 from frisicp_ros.stream.pairing import PAIRING_MODES, PairingMode
+from frisicp_ros.stream.pointcloud2 import VOXEL_MODES, VoxelMode
 
 Value = bool | int | float | str
 
@@ -330,9 +331,18 @@ OPTIONS: tuple[Option, ...] = (
         "voxel_size",
         0.0,
         "edge of a voxel grid (in the clouds' units, m for most sensors) applied to both clouds"
-        " (to data clouds before max_points): the first point of each occupied voxel is kept; 0 = off",
+        " (to data clouds before max_points): one point per occupied voxel is kept (voxel_mode); 0 = off",
         bounds=(0.0, 1e9),
         rule=VOXEL_RULE,
+    ),
+    stream_option(
+        "voxel_mode",
+        VoxelMode.FIRST.value,
+        "what the voxel grid keeps of each occupied voxel: first (its first point, a measured one)"
+        " or centroid (the mean of its points: smooths the terraces of a depth camera's quantised"
+        " depth, on which two nearby frames can lock; voxel_size a depth step or two, README"
+        " 'Depth-sensor noise')",
+        choices=VOXEL_MODES,
     ),
     stream_option(
         "warm_start", True, "start each registration from the previous converged estimate (tracking)"
@@ -559,6 +569,7 @@ class PipelineSettings:
     dims: int
     max_points: int
     voxel_size: float
+    voxel_mode: str
     warm_start: bool
     motion_model: str
     pairing: str

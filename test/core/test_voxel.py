@@ -107,6 +107,19 @@ def test_read_cloud_applies_voxels_to_finite_points_then_the_cap():
     assert capped.convert_seconds > 0 and capped.downsample_seconds > 0
 
 
+def test_read_cloud_averages_each_voxel_in_centroid_mode():
+    points = bumpy_surface(5000, seed=5)
+    points[::9] = np.nan
+    msg = cloud(points)
+    finite = points[np.isfinite(points).all(axis=1)].astype(np.float32).astype(np.float64)
+    read = read_cloud(msg, voxel_size=0.1, voxel_mode="centroid")
+    np.testing.assert_array_equal(read.points, voxel.voxel_centroids(finite, 0.1))
+    # As many voxels as the first-point grid keeps, each at its points' mean instead.
+    assert read.voxels == len(read.points) == len(read_cloud(msg, voxel_size=0.1).points)
+    with pytest.raises(ValueError, match="voxel_mode must be one of first, centroid, got 'mean'"):
+        read_cloud(msg, voxel_size=0.1, voxel_mode="mean")
+
+
 def test_read_cloud_with_voxels_rejects_empty_and_all_nan_clouds():
     with pytest.raises(CloudError, match="no finite points"):
         read_cloud(cloud(np.full((10, 3), np.nan)), voxel_size=0.1)
@@ -119,3 +132,68 @@ def test_a_grid_too_fine_for_float64_keeps_every_point_without_a_warning():
     """voxel_size 1e-300 (now refused as a parameter) printed numpy's overflow warning per cloud."""
     points = np.random.default_rng(1).normal(size=(500, 3))
     assert voxel_filter(points, 1e-300) is points
+
+
+def reference_centroids(points: np.ndarray, size: float) -> np.ndarray:
+    """The definition, one point at a time: the mean of each voxel's points, in the order of the
+    voxels' first points (a cell beyond float64 is a voxel of its own)."""
+    groups: dict[object, list[int]] = {}
+    for i, point in enumerate(points):
+        with np.errstate(over="ignore"):
+            cell = tuple(np.floor(point / size))
+        groups.setdefault(("alone", i) if any(np.isinf(cell)) else cell, []).append(i)
+    return np.array([points[rows].mean(axis=0) for rows in groups.values()])
+
+
+def test_centroids_average_each_voxel_in_the_order_of_its_first_point():
+    points = np.array(
+        [
+            [0.1, 0.1, 0.1],  # voxel (0, 0, 0) ...
+            [0.5, 0.1, 0.1],  # voxel (1, 0, 0) ...
+            [0.3, 0.3, 0.3],  # ... (0, 0, 0) again
+            [0.7, 0.3, 0.1],  # ... (1, 0, 0) again
+            [-0.1, 0.1, 0.1],  # voxel (-1, 0, 0): alone, kept exactly
+        ]
+    )
+    np.testing.assert_allclose(
+        voxel.voxel_centroids(points, 0.5), [[0.2, 0.2, 0.2], [0.6, 0.2, 0.1], [-0.1, 0.1, 0.1]], atol=1e-15
+    )
+
+
+@pytest.mark.parametrize("dims", [2, 3])
+def test_centroids_match_the_definition_with_cells_beyond_float64(dims):
+    rng = np.random.default_rng(dims)
+    points = rng.normal(size=(500, dims))
+    points[100:200] = points[:100] + rng.normal(scale=1e-3, size=(100, dims))
+    points[7] = 1e308  # x / size overflows: its own voxel, kept as it is
+    points[300] = -1e308
+    got = voxel.voxel_centroids(points, 1e-3)
+    np.testing.assert_allclose(got, reference_centroids(points, 1e-3), rtol=1e-12, atol=1e-12)
+    for far in (1e308, -1e308):  # each kept exactly, once
+        assert np.count_nonzero((got == far).all(axis=1)) == 1
+
+
+def test_centroids_smooth_the_terraces_of_quantised_depth():
+    """A 45-degree plane whose heights come in steps of h (uniform within a step: h / sqrt(12) off
+    it): averaging over voxels two steps wide brings the points a third closer to the plane; the
+    first point of each voxel keeps the steps."""
+    rng = np.random.default_rng(3)
+    xy = rng.uniform(0.0, 1.0, size=(20000, 2))
+    step = 0.02
+    terraced = np.column_stack([xy, np.round(xy[:, 0] / step) * step])
+
+    def off_plane(cloud: np.ndarray) -> float:
+        return float(np.sqrt(np.mean((cloud[:, 2] - cloud[:, 0]) ** 2))) / step
+
+    assert 0.28 < off_plane(terraced) < 0.30
+    assert off_plane(voxel.voxel_centroids(terraced, 2 * step)) < 0.21
+    assert off_plane(voxel_filter(terraced, 2 * step)) > 0.27
+
+
+def test_centroids_refuse_what_the_filter_refuses():
+    with pytest.raises(ValueError, match="voxel_centroids needs finite points"):
+        voxel.voxel_centroids(np.array([[0.0, 0.0, np.nan], [1.0, 0.0, 0.0]]), 0.1)
+    with pytest.raises(ValueError, match="positive finite"):
+        voxel.voxel_centroids(np.zeros((3, 3)), 0.0)
+    assert voxel.voxel_centroids(np.zeros((0, 3)), 0.1).shape == (0, 3)
+    np.testing.assert_array_equal(voxel.voxel_centroids(np.ones((1, 3)), 0.1), np.ones((1, 3)))

@@ -175,6 +175,14 @@ def test_changing_voxels_or_cap_forgets_the_model_and_the_warm_start():
     outcome = pipeline.process(model_msg, data_msg)
     assert isinstance(outcome, Registered) and outcome.data_points < 2000  # the grid thinned it
     assert outcome.result.similarity.scale == pytest.approx(TRUTH.scale, rel=1e-2)
+    # The voxels' means instead of their first points: other clouds, so forgotten too.
+    pipeline.update_settings(pipeline.settings.updated(voxel_mode="centroid"))
+    assert pipeline.previous is None and pipeline._model_cache is None
+    averaged = pipeline.process(model_msg, data_msg)
+    assert isinstance(averaged, Registered) and averaged.data_points == outcome.data_points
+    assert averaged.result.similarity.scale == pytest.approx(TRUTH.scale, rel=1e-2)
+    with pytest.raises(ValueError, match="voxel_mode must be one of first, centroid"):
+        pipeline.settings.updated(voxel_mode="median")
 
 
 def test_pipeline_2d_mode_registers_planar_scans():
