@@ -146,8 +146,8 @@ class VoxelMode(str, Enum):
     """What the voxel grid keeps of each occupied voxel; the values are the ``voxel_mode``
     parameter's (``frisicp_core.voxel``)."""
 
-    FIRST = "first"  # its first point: a measured point, about 1 ms per 100,000 points
-    CENTROID = "centroid"  # the mean of its points: smooths quantised depth, about 20 ms
+    FIRST = "first"  # its first point: a measured point (frisicp_core.voxel_filter)
+    CENTROID = "centroid"  # the mean of its points: smooths quantised depth (voxel_centroids)
 
 
 VOXEL_MODES: tuple[str, ...] = tuple(mode.value for mode in VoxelMode)
