@@ -23,13 +23,16 @@ says the data determine the pose to the tolerance. Scored like trustworthy.py: r
 < 1 deg, scale < 1 %, translation < 0.5 % of the model's diagonal; what must be 0 is **wrong and
 reliable**.
 
+``--occlusion``: each camera keeps only the points it sees (:func:`frisicp_bench.sensor.visible`,
+a z-buffer), so two frames also differ in what each one's foreground hides.
+
 ``--average F``: what a user can do about coarse steps: both clouds averaged on a voxel grid
 (:func:`frisicp_core.voxel_centroids`, the mean of each voxel's points, as the node's and
 ``frisicp bag``'s ``voxel_mode: centroid`` does) of edge F times the depth step at the median
 range, in each cloud's own units (the sensor's step, known in its frame), before the cap.
 
 Usage: python benchmarks/depth_sensor.py [--jobs 2] [--data DIR] [--steps 0.005,0.01,0.02]
-                                         [--suite frames] [--average F] [--draw N]
+                                         [--suite frames] [--occlusion] [--average F] [--draw N]
                                          [--out docs/depth_sensor.md]
        python benchmarks/depth_sensor.py --quick   # one frame pair and one crop of rs1 -> build/
 Exits 0 without measuring when the data folder is absent, saying so.
@@ -71,7 +74,11 @@ SUITES = ("frames", "crop onto scene")
 
 
 def score(
-    key: tuple[str, str, float, float, int], data_dir: Path, draw: int, average: float = 0.0
+    key: tuple[str, str, float, float, int],
+    data_dir: Path,
+    draw: int,
+    average: float = 0.0,
+    occlusion: bool = False,
 ) -> dict[str, Any]:
     """Build, register (cold and from the truth) and score one case, deterministic in its key and
     ``draw``: (suite, scene, depth step, shift or share, repeat); with ``average`` > 0 both clouds
@@ -82,9 +89,11 @@ def score(
     scene = object_cloud(data_dir, scene_name)
     name = Path(scene_name).stem
     if suite == "frames":
-        case = sensed_frames_case(scene, name, step, size, NOISE, rng)
+        case = sensed_frames_case(scene, name, step, size, NOISE, rng, occlusion)
     else:
-        case = sensed_crop_case(scene, name, size, float(rng.choice(PAPER_SCALES)), step, NOISE, rng)
+        case = sensed_crop_case(
+            scene, name, size, float(rng.choice(PAPER_SCALES)), step, NOISE, rng, occlusion
+        )
     assert case.truth is not None
     data, model = case.data, case.model
     if average > 0:
@@ -212,6 +221,7 @@ def main(argv: list[str] | None = None) -> int:
         metavar="F",
         help="average both clouds on voxels of F depth steps first (default 0: off)",
     )
+    command.add_argument("--occlusion", action="store_true", help="each camera keeps only what it sees")
     args = script.parse(command, argv)
     if not (np.isfinite(args.average) and args.average >= 0):
         command.error("--average must be a finite number >= 0")
@@ -234,11 +244,17 @@ def main(argv: list[str] | None = None) -> int:
             for size in sizes
             for repeat in range(REPEATS)
         ]
-    work = functools.partial(score, data_dir=args.data, draw=args.draw, average=args.average)
+    work = functools.partial(
+        score, data_dir=args.data, draw=args.draw, average=args.average, occlusion=args.occlusion
+    )
     records = script.map_cases(args, work, cases, line)
     if records is None:
         return 0
-    title = TITLE + (f", averaged on voxels of {args.average:g} steps" if args.average else "")
+    title = (
+        TITLE
+        + (", each camera seeing only what is in front" if args.occlusion else "")
+        + (f", averaged on voxels of {args.average:g} steps" if args.average else "")
+    )
     write_report(
         args.out, title, script.command_line(args), summary(records, args.draw), table(records), records
     )

@@ -29,6 +29,10 @@ from .scenes import SceneCase, box_crop, protocol_similarity, resampled
 # The camera stands this many times the view's size (its bounding-box diagonal) from the view's
 # centroid, in a random direction.
 CAMERA_DISTANCE = 1.5
+# Occlusion (visible): points per pixel of the camera's grid on average, and how far behind a
+# pixel's nearest point (a share of its range) a point still counts as the same surface.
+POINTS_PER_PIXEL = 10
+SURFACE_DEPTH = 0.02
 
 
 def depth_sensor(
@@ -53,6 +57,31 @@ def depth_sensor(
     return sensed
 
 
+def visible(points: FloatArray, camera: FloatArray) -> FloatArray:
+    """The points a camera at ``camera`` sees (a z-buffer): their directions, about the one to
+    their centroid, on a grid of square pixels holding :data:`POINTS_PER_PIXEL` points on
+    average over the grid's extent; in each pixel the points within :data:`SURFACE_DEPTH` of
+    the nearest one's range (the front surface; what lies behind it is occluded)."""
+    offsets = points - camera
+    ranges = np.linalg.norm(offsets, axis=1)
+    axis = offsets.mean(axis=0)
+    axis /= np.linalg.norm(axis)
+    helper = np.eye(3)[int(np.argmin(np.abs(axis)))]
+    across = np.cross(axis, helper)
+    across /= np.linalg.norm(across)
+    up = np.cross(axis, across)
+    depth = offsets @ axis
+    angles = np.column_stack([np.arctan2(offsets @ across, depth), np.arctan2(offsets @ up, depth)])
+    low, extent = angles.min(axis=0), np.ptp(angles, axis=0)
+    pixel = float(np.sqrt(max(extent[0] * extent[1], 1e-24) * POINTS_PER_PIXEL / points.shape[0]))
+    cells = np.floor((angles - low) / pixel).astype(np.int64)
+    key = cells[:, 0] * (int(cells[:, 1].max()) + 1) + cells[:, 1]
+    nearest = np.full(int(key.max()) + 1, np.inf)
+    np.minimum.at(nearest, key, ranges)
+    seen: FloatArray = points[ranges <= nearest[key] * (1.0 + SURFACE_DEPTH)]
+    return seen
+
+
 def camera_facing(view: FloatArray, rng: np.random.Generator) -> FloatArray:
     """A camera :data:`CAMERA_DISTANCE` view sizes from the view's centroid, in a random direction."""
     direction = rng.normal(size=view.shape[1])
@@ -63,13 +92,20 @@ def camera_facing(view: FloatArray, rng: np.random.Generator) -> FloatArray:
 
 
 def sensed_frames_case(
-    scene: FloatArray, name: str, step: float, shift: float, noise: float, rng: np.random.Generator
+    scene: FloatArray,
+    name: str,
+    step: float,
+    shift: float,
+    noise: float,
+    rng: np.random.Generator,
+    occlusion: bool = False,
 ) -> SceneCase:
     """Two overlapping depth frames: boxes of 40 % of the scene, ``shift`` of the box's width apart,
     each re-sampled from its own half of the scene's points and seen by its own camera (the second
     moved by the same offset as its box) with :func:`depth_sensor`'s errors (``noise`` and
     ``step`` as shares of the scene's diagonal); the data moved by a small motion (up to 5
-    degrees, 1-5 % scale drift), as :func:`frisicp_bench.scenes.frames_case` does."""
+    degrees, 1-5 % scale drift), as :func:`frisicp_bench.scenes.frames_case` does. With
+    ``occlusion`` each camera keeps only what it sees (:func:`visible`)."""
     diagonal = model_size(scene)
     first = scene[rng.integers(scene.shape[0])]
     halves = rng.random(scene.shape[0]) < 0.5
@@ -79,16 +115,15 @@ def sensed_frames_case(
     offset = shift * width * direction / np.linalg.norm(direction)
     other = box_crop(scene[~halves], 0.4, rng, first + offset)
     camera = camera_facing(view, rng)
-    data = depth_sensor(
-        resampled(view, rng.uniform(0.5, 1.0), 0.0, rng), camera, noise * diagonal, step * diagonal, rng
-    )
-    model = depth_sensor(
-        resampled(other, rng.uniform(0.5, 1.0), 0.0, rng),
-        camera + offset,
-        noise * diagonal,
-        step * diagonal,
-        rng,
-    )
+
+    def sensed(points: FloatArray, at: FloatArray) -> FloatArray:
+        kept = resampled(points, rng.uniform(0.5, 1.0), 0.0, rng)
+        return depth_sensor(
+            visible(kept, at) if occlusion else kept, at, noise * diagonal, step * diagonal, rng
+        )
+
+    data = sensed(view, camera)
+    model = sensed(other, camera + offset)
     scale = float(np.exp(rng.choice((-1.0, 1.0)) * rng.uniform(0.01, 0.05)))
     moved = protocol_similarity(model, scale, 5.0, rng)
     return SceneCase(f"{name} frames shift {shift:.2f}", "frames", moved.apply(data), model, moved.inverse())
@@ -102,13 +137,18 @@ def sensed_crop_case(
     step: float,
     noise: float,
     rng: np.random.Generator,
+    occlusion: bool = False,
 ) -> SceneCase:
     """A crop of ``share`` of the scene (30-100 % of its points kept) seen by a depth camera
-    (:func:`depth_sensor`), moved by ``frisicp bench``'s protocol at ``scale`` (turned up to 30
-    degrees), onto the scene as it is (a map made otherwise)."""
+    (:func:`depth_sensor`; with ``occlusion`` only what it sees, :func:`visible`), moved by
+    ``frisicp bench``'s protocol at ``scale`` (turned up to 30 degrees), onto the scene as it is
+    (a map made otherwise)."""
     diagonal = model_size(scene)
     crop = resampled(box_crop(scene, share, rng), rng.uniform(0.3, 1.0), 0.0, rng)
-    sensed = depth_sensor(crop, camera_facing(crop, rng), noise * diagonal, step * diagonal, rng)
+    camera = camera_facing(crop, rng)
+    if occlusion:
+        crop = visible(crop, camera)
+    sensed = depth_sensor(crop, camera, noise * diagonal, step * diagonal, rng)
     moved = protocol_similarity(scene, scale, 30.0, rng)
     return SceneCase(
         f"{name} {share:.0%} s={scale:.3g}", "crop onto scene", moved.apply(sensed), scene, moved.inverse()

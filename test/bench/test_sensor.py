@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from frisicp_bench.sensor import depth_sensor, sensed_frames_case
+from frisicp_bench.sensor import depth_sensor, sensed_frames_case, visible
 
 
 def _wall(rng: np.random.Generator) -> np.ndarray:
@@ -47,3 +47,22 @@ def test_two_sensed_frames_carry_their_truth_and_the_data_is_moved_by_it() -> No
     distances = np.min(np.linalg.norm(landed[:200, None, :] - scene[None], axis=2), axis=1)
     assert distances.max() < 1e-9
     assert abs(np.log(case.truth.scale)) <= 0.05 + 1e-12
+
+
+def test_a_camera_sees_the_front_wall_and_not_what_it_hides() -> None:
+    """A 1 x 1 panel at x = 2 in front of a 4 x 4 wall at x = 4, seen from the origin: the panel
+    is all seen; of the wall, the part in the panel's shadow (2 x 2 at x = 4) is hidden but for
+    pixels no panel point happened to fall in (random samples, not a sensor's full raster)."""
+    rng = np.random.default_rng(4)
+    panel = np.column_stack([np.full(4000, 2.0), rng.uniform(-0.5, 0.5, (4000, 2))])
+    wall = np.column_stack([np.full(16000, 4.0), rng.uniform(-2.0, 2.0, (16000, 2))])
+    seen = visible(np.concatenate([panel, wall]), np.zeros(3))
+    assert np.count_nonzero(seen[:, 0] == 2.0) == 4000
+    behind = seen[seen[:, 0] == 4.0]
+
+    def inside(points: np.ndarray, half: float) -> int:
+        return int(np.count_nonzero(np.all(np.abs(points[:, 1:]) < half, axis=1)))
+
+    assert inside(behind, 0.9) < 0.02 * inside(wall, 0.9)
+    outside = np.any(np.abs(behind[:, 1:]) > 1.1, axis=1).sum()
+    assert outside > 0.98 * np.any(np.abs(wall[:, 1:]) > 1.1, axis=1).sum()
