@@ -26,13 +26,19 @@ reliable**.
 ``--occlusion``: each camera keeps only the points it sees (:func:`frisicp_bench.sensor.visible`,
 a z-buffer), so two frames also differ in what each one's foreground hides.
 
+``--rings N``: a spinning lidar's sampling instead of a camera's raster: N beams over the
+view's elevations, each keeping a thin band of points (:func:`frisicp_bench.sensor.ring_sampled`),
+so the clouds come as rings; with ``--steps 0`` its noise is along the rays only (a lidar's
+ranges are not quantised in disparity).
+
 ``--average F``: what a user can do about coarse steps: both clouds averaged on a voxel grid
 (:func:`frisicp_core.voxel_centroids`, the mean of each voxel's points, as the node's and
 ``frisicp bag``'s ``voxel_mode: centroid`` does) of edge F times the depth step at the median
 range, in each cloud's own units (the sensor's step, known in its frame), before the cap.
 
 Usage: python benchmarks/depth_sensor.py [--jobs 2] [--data DIR] [--steps 0.005,0.01,0.02]
-                                         [--suite frames] [--occlusion] [--average F] [--draw N]
+                                         [--suite frames] [--occlusion] [--rings N] [--average F]
+                                         [--draw N]
                                          [--out docs/depth_sensor.md]
        python benchmarks/depth_sensor.py --quick   # one frame pair and one crop of rs1 -> build/
 Exits 0 without measuring when the data folder is absent, saying so.
@@ -58,7 +64,7 @@ from frisicp_bench.cases import PAPER_SCALES
 from frisicp_bench.metrics import model_size, pose_errors
 from frisicp_bench.report import case_record, write_report, wrong_but_reliable
 from frisicp_bench.scenes import object_cloud
-from frisicp_bench.sensor import sensed_crop_case, sensed_frames_case
+from frisicp_bench.sensor import ring_sampled, sensed_crop_case, sensed_frames_case, visible
 from frisicp_core import downsample, register, voxel_centroids
 
 TITLE = "Depth-sensor noise: frames and crops with errors along the rays and quantised depth"
@@ -79,6 +85,7 @@ def score(
     draw: int,
     average: float = 0.0,
     occlusion: bool = False,
+    rings: int = 0,
 ) -> dict[str, Any]:
     """Build, register (cold and from the truth) and score one case, deterministic in its key and
     ``draw``: (suite, scene, depth step, shift or share, repeat); with ``average`` > 0 both clouds
@@ -86,14 +93,13 @@ def score(
     suite, scene_name, step, size, repeat = key
     salt = f"{suite}/{scene_name}/{step}/{size}/{repeat}" + (f"/draw {draw}" if draw else "")
     rng = np.random.default_rng(zlib.crc32(salt.encode()))
+    sight = functools.partial(_sight, occlusion=occlusion, rings=rings) if occlusion or rings else None
     scene = object_cloud(data_dir, scene_name)
     name = Path(scene_name).stem
     if suite == "frames":
-        case = sensed_frames_case(scene, name, step, size, NOISE, rng, occlusion)
+        case = sensed_frames_case(scene, name, step, size, NOISE, rng, sight)
     else:
-        case = sensed_crop_case(
-            scene, name, size, float(rng.choice(PAPER_SCALES)), step, NOISE, rng, occlusion
-        )
+        case = sensed_crop_case(scene, name, size, float(rng.choice(PAPER_SCALES)), step, NOISE, rng, sight)
     assert case.truth is not None
     data, model = case.data, case.model
     if average > 0:
@@ -122,6 +128,12 @@ def score(
         else [3 * sigmas.rotation_deg, 3 * sigmas.scale, 3 * sigmas.translation / case.model_diagonal],
         truth_start={"right": from_the_truth.success, "reliable": warm.reliable},
     )
+
+
+def _sight(points: np.ndarray, camera: np.ndarray, occlusion: bool, rings: int) -> np.ndarray:
+    """What the sensor at ``camera`` keeps: the front surface (``occlusion``), in rings."""
+    kept = visible(points, camera) if occlusion else points
+    return ring_sampled(kept, camera, rings) if rings else kept
 
 
 def line(record: dict[str, Any]) -> str:
@@ -222,7 +234,16 @@ def main(argv: list[str] | None = None) -> int:
         help="average both clouds on voxels of F depth steps first (default 0: off)",
     )
     command.add_argument("--occlusion", action="store_true", help="each camera keeps only what it sees")
+    command.add_argument(
+        "--rings",
+        type=int,
+        default=0,
+        metavar="N",
+        help="a lidar's N rings instead of a raster (default 0: off)",
+    )
     args = script.parse(command, argv)
+    if args.rings < 0 or args.rings == 1:
+        command.error("--rings must be 0 (off) or at least 2")
     if not (np.isfinite(args.average) and args.average >= 0):
         command.error("--average must be a finite number >= 0")
     suites = tuple(args.suite or SUITES)
@@ -245,7 +266,12 @@ def main(argv: list[str] | None = None) -> int:
             for repeat in range(REPEATS)
         ]
     work = functools.partial(
-        score, data_dir=args.data, draw=args.draw, average=args.average, occlusion=args.occlusion
+        score,
+        data_dir=args.data,
+        draw=args.draw,
+        average=args.average,
+        occlusion=args.occlusion,
+        rings=args.rings,
     )
     records = script.map_cases(args, work, cases, line)
     if records is None:
@@ -253,6 +279,7 @@ def main(argv: list[str] | None = None) -> int:
     title = (
         TITLE
         + (", each camera seeing only what is in front" if args.occlusion else "")
+        + (f", in {args.rings} lidar rings" if args.rings else "")
         + (f", averaged on voxels of {args.average:g} steps" if args.average else "")
     )
     write_report(

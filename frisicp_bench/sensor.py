@@ -19,6 +19,8 @@ the cloud, so one number describes the same sensor whatever the scene's units.
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from frisicp_core import FloatArray
@@ -33,6 +35,12 @@ CAMERA_DISTANCE = 1.5
 # pixel's nearest point (a share of its range) a point still counts as the same surface.
 POINTS_PER_PIXEL = 10
 SURFACE_DEPTH = 0.02
+# Rings (ring_sampled): each beam keeps the points within this share of the channels' spacing
+# of its elevation.
+BEAM = 0.1
+
+# What a camera at a place keeps of the points in front of it: (points, camera) -> points.
+Sight = Callable[[FloatArray, FloatArray], FloatArray]
 
 
 def depth_sensor(
@@ -82,6 +90,20 @@ def visible(points: FloatArray, camera: FloatArray) -> FloatArray:
     return seen
 
 
+def ring_sampled(points: FloatArray, camera: FloatArray, channels: int) -> FloatArray:
+    """The points a spinning lidar at ``camera`` with ``channels`` beams measures: its beams
+    spread evenly over the points' elevations (about the frame's z axis), each keeping the
+    points within :data:`BEAM` of the beams' spacing of its own elevation, so the cloud comes
+    as rings, dense along them and sparse across."""
+    offsets = points - camera
+    elevation = np.arcsin(np.clip(offsets[:, 2] / np.linalg.norm(offsets, axis=1), -1.0, 1.0))
+    low, high = float(elevation.min()), float(elevation.max())
+    spacing = (high - low) / max(channels - 1, 1)
+    beam = np.clip(np.round((elevation - low) / max(spacing, 1e-12)), 0, channels - 1)
+    kept: FloatArray = points[np.abs(elevation - (low + beam * spacing)) <= BEAM * spacing]
+    return kept
+
+
 def camera_facing(view: FloatArray, rng: np.random.Generator) -> FloatArray:
     """A camera :data:`CAMERA_DISTANCE` view sizes from the view's centroid, in a random direction."""
     direction = rng.normal(size=view.shape[1])
@@ -98,14 +120,15 @@ def sensed_frames_case(
     shift: float,
     noise: float,
     rng: np.random.Generator,
-    occlusion: bool = False,
+    sight: Sight | None = None,
 ) -> SceneCase:
     """Two overlapping depth frames: boxes of 40 % of the scene, ``shift`` of the box's width apart,
     each re-sampled from its own half of the scene's points and seen by its own camera (the second
     moved by the same offset as its box) with :func:`depth_sensor`'s errors (``noise`` and
     ``step`` as shares of the scene's diagonal); the data moved by a small motion (up to 5
     degrees, 1-5 % scale drift), as :func:`frisicp_bench.scenes.frames_case` does. With
-    ``occlusion`` each camera keeps only what it sees (:func:`visible`)."""
+    ``sight`` each camera keeps only what that says it measures (:func:`visible`,
+    :func:`ring_sampled`)."""
     diagonal = model_size(scene)
     first = scene[rng.integers(scene.shape[0])]
     halves = rng.random(scene.shape[0]) < 0.5
@@ -119,7 +142,7 @@ def sensed_frames_case(
     def sensed(points: FloatArray, at: FloatArray) -> FloatArray:
         kept = resampled(points, rng.uniform(0.5, 1.0), 0.0, rng)
         return depth_sensor(
-            visible(kept, at) if occlusion else kept, at, noise * diagonal, step * diagonal, rng
+            kept if sight is None else sight(kept, at), at, noise * diagonal, step * diagonal, rng
         )
 
     data = sensed(view, camera)
@@ -137,17 +160,17 @@ def sensed_crop_case(
     step: float,
     noise: float,
     rng: np.random.Generator,
-    occlusion: bool = False,
+    sight: Sight | None = None,
 ) -> SceneCase:
     """A crop of ``share`` of the scene (30-100 % of its points kept) seen by a depth camera
-    (:func:`depth_sensor`; with ``occlusion`` only what it sees, :func:`visible`), moved by
+    (:func:`depth_sensor`; with ``sight`` only what that keeps), moved by
     ``frisicp bench``'s protocol at ``scale`` (turned up to 30 degrees), onto the scene as it is
     (a map made otherwise)."""
     diagonal = model_size(scene)
     crop = resampled(box_crop(scene, share, rng), rng.uniform(0.3, 1.0), 0.0, rng)
     camera = camera_facing(crop, rng)
-    if occlusion:
-        crop = visible(crop, camera)
+    if sight is not None:
+        crop = sight(crop, camera)
     sensed = depth_sensor(crop, camera, noise * diagonal, step * diagonal, rng)
     moved = protocol_similarity(scene, scale, 30.0, rng)
     return SceneCase(

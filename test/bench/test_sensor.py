@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from frisicp_bench.sensor import depth_sensor, sensed_frames_case, visible
+from frisicp_bench.sensor import depth_sensor, ring_sampled, sensed_frames_case, visible
 
 
 def _wall(rng: np.random.Generator) -> np.ndarray:
@@ -66,3 +66,20 @@ def test_a_camera_sees_the_front_wall_and_not_what_it_hides() -> None:
     assert inside(behind, 0.9) < 0.02 * inside(wall, 0.9)
     outside = np.any(np.abs(behind[:, 1:]) > 1.1, axis=1).sum()
     assert outside > 0.98 * np.any(np.abs(wall[:, 1:]) > 1.1, axis=1).sum()
+
+
+def test_a_lidar_keeps_thin_rings_evenly_spread_over_the_elevations() -> None:
+    """A wall seen by 8 beams: 8 bands of points, each within a tenth of the beams' spacing of
+    its elevation, about a fifth of the points in all."""
+    rng = np.random.default_rng(5)
+    wall = np.column_stack(
+        [np.full(20000, 4.0), rng.uniform(-2.0, 2.0, 20000), rng.uniform(-1.0, 1.0, 20000)]
+    )
+    rings = ring_sampled(wall, np.zeros(3), 8)
+    elevation = np.arcsin(rings[:, 2] / np.linalg.norm(rings, axis=1))
+    full = np.arcsin(wall[:, 2] / np.linalg.norm(wall, axis=1))
+    spacing = np.ptp(full) / 7
+    beam = np.round((elevation - full.min()) / spacing)
+    assert set(beam.astype(int)) == set(range(8))
+    assert np.abs(elevation - (full.min() + beam * spacing)).max() <= 0.1 * spacing + 1e-12
+    assert 0.1 < rings.shape[0] / wall.shape[0] < 0.3
