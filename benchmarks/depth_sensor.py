@@ -136,11 +136,17 @@ def _sight(points: np.ndarray, camera: np.ndarray, occlusion: bool, rings: int) 
     return ring_sampled(kept, camera, rings) if rings else kept
 
 
+def percent(step: float) -> str:
+    """A depth step in per cent: one decimal, two where one would round it (1.25 %)."""
+    one = f"{100 * step:.1f}"
+    return one if abs(float(one) - 100 * step) < 1e-9 else f"{100 * step:.2f}"
+
+
 def line(record: dict[str, Any]) -> str:
     verdict = "reliable" if record["reliable"] else record["reason"][:50]
     flag = "  WRONG AND RELIABLE" if record["reliable"] and not record["success"] else ""
     return (
-        f"step {100 * record['step']:.1f} % {record['suite']:15s} {record['case']:28s} "
+        f"step {percent(record['step'])} % {record['suite']:15s} {record['case']:28s} "
         f"{'ok  ' if record['success'] else 'FAIL'} rot {record['rotation_deg']:6.2f} deg "
         f"scale {100 * record['scale_error']:6.2f} %  {verdict}{flag}"
     )
@@ -175,7 +181,7 @@ def table(records: list[dict[str, Any]]) -> tuple[list[str], list[list[object]]]
                     continue
                 rows.append(
                     [
-                        f"{100 * step:.1f} %",
+                        f"{percent(step)} %",
                         suite,
                         clouds,
                         len(group),
@@ -202,7 +208,7 @@ def summary(records: list[dict[str, Any]], draw: int) -> str:
             three = r["three_sigma"] or [float("nan")] * 3
             start = r["truth_start"]
             text += (
-                f"\n- step {100 * r['step']:.1f} %, {r['suite']}, {r['case']}: rotation {r['rotation_deg']:.2f} deg, "
+                f"\n- step {percent(r['step'])} %, {r['suite']}, {r['case']}: rotation {r['rotation_deg']:.2f} deg, "
                 f"scale {100 * r['scale_error']:.2f} %, translation {100 * r['translation_error']:.2f} % off; "
                 f"3 sigma {three[0]:.2f} deg, {100 * three[1]:.2f} %, {100 * three[2]:.2f} %; from the truth: "
                 f"{'right' if start['right'] else 'wrong'}, {'reliable' if start['reliable'] else 'refused'}"
