@@ -26,6 +26,10 @@ reliable**.
 ``--occlusion``: each camera keeps only the points it sees (:func:`frisicp_bench.sensor.visible`,
 a z-buffer), so two frames also differ in what each one's foreground hides.
 
+``--flying``: with ``--occlusion``, every pixel that straddles a depth edge also reports a
+flying pixel half-way between its front and its back (``visible(..., flying=True)``), the
+mixed pixels of time-of-flight and structured-light cameras.
+
 ``--rings N``: a spinning lidar's sampling instead of a camera's raster: N beams over the
 view's elevations, each keeping a thin band of points (:func:`frisicp_bench.sensor.ring_sampled`),
 so the clouds come as rings; with ``--steps 0`` its noise is along the rays only (a lidar's
@@ -37,9 +41,9 @@ ranges are not quantised in disparity).
 range, in each cloud's own units (the sensor's step, known in its frame), before the cap.
 
 Usage: python benchmarks/depth_sensor.py [--jobs 2] [--data DIR] [--steps 0.005,0.01,0.02]
-                                         [--suite frames] [--occlusion] [--rings N] [--average F]
-                                         [--draw N]
-                                         [--out docs/depth_sensor.md]
+                                         [--suite frames] [--occlusion [--flying]] [--rings N]
+                                         [--average F]
+                                         [--draw N] [--out docs/depth_sensor.md]
        python benchmarks/depth_sensor.py --quick   # one frame pair and one crop of rs1 -> build/
 Exits 0 without measuring when the data folder is absent, saying so.
 """
@@ -86,6 +90,7 @@ def score(
     average: float = 0.0,
     occlusion: bool = False,
     rings: int = 0,
+    flying: bool = False,
 ) -> dict[str, Any]:
     """Build, register (cold and from the truth) and score one case, deterministic in its key and
     ``draw``: (suite, scene, depth step, shift or share, repeat); with ``average`` > 0 both clouds
@@ -93,7 +98,11 @@ def score(
     suite, scene_name, step, size, repeat = key
     salt = f"{suite}/{scene_name}/{step}/{size}/{repeat}" + (f"/draw {draw}" if draw else "")
     rng = np.random.default_rng(zlib.crc32(salt.encode()))
-    sight = functools.partial(_sight, occlusion=occlusion, rings=rings) if occlusion or rings else None
+    sight = (
+        functools.partial(_sight, occlusion=occlusion, rings=rings, flying=flying)
+        if occlusion or rings
+        else None
+    )
     scene = object_cloud(data_dir, scene_name)
     name = Path(scene_name).stem
     if suite == "frames":
@@ -130,9 +139,10 @@ def score(
     )
 
 
-def _sight(points: np.ndarray, camera: np.ndarray, occlusion: bool, rings: int) -> np.ndarray:
-    """What the sensor at ``camera`` keeps: the front surface (``occlusion``), in rings."""
-    kept = visible(points, camera) if occlusion else points
+def _sight(points: np.ndarray, camera: np.ndarray, occlusion: bool, rings: int, flying: bool) -> np.ndarray:
+    """What the sensor at ``camera`` keeps: the front surface (``occlusion``, with ``flying``
+    pixels), in rings."""
+    kept = visible(points, camera, flying) if occlusion else points
     return ring_sampled(kept, camera, rings) if rings else kept
 
 
@@ -241,6 +251,9 @@ def main(argv: list[str] | None = None) -> int:
     )
     command.add_argument("--occlusion", action="store_true", help="each camera keeps only what it sees")
     command.add_argument(
+        "--flying", action="store_true", help="with --occlusion: flying pixels at depth edges"
+    )
+    command.add_argument(
         "--rings",
         type=int,
         default=0,
@@ -248,6 +261,8 @@ def main(argv: list[str] | None = None) -> int:
         help="a lidar's N rings instead of a raster (default 0: off)",
     )
     args = script.parse(command, argv)
+    if args.flying and not args.occlusion:
+        command.error("--flying needs --occlusion (flying pixels lie at the edges it finds)")
     if args.rings < 0 or args.rings == 1:
         command.error("--rings must be 0 (off) or at least 2")
     if not (np.isfinite(args.average) and args.average >= 0):
@@ -278,6 +293,7 @@ def main(argv: list[str] | None = None) -> int:
         average=args.average,
         occlusion=args.occlusion,
         rings=args.rings,
+        flying=args.flying,
     )
     records = script.map_cases(args, work, cases, line)
     if records is None:
@@ -285,6 +301,7 @@ def main(argv: list[str] | None = None) -> int:
     title = (
         TITLE
         + (", each camera seeing only what is in front" if args.occlusion else "")
+        + (", with flying pixels at depth edges" if args.flying else "")
         + (f", in {args.rings} lidar rings" if args.rings else "")
         + (f", averaged on voxels of {args.average:g} steps" if args.average else "")
     )

@@ -65,11 +65,16 @@ def depth_sensor(
     return sensed
 
 
-def visible(points: FloatArray, camera: FloatArray) -> FloatArray:
+def visible(points: FloatArray, camera: FloatArray, flying: bool = False) -> FloatArray:
     """The points a camera at ``camera`` sees (a z-buffer): their directions, about the one to
     their centroid, on a grid of square pixels holding :data:`POINTS_PER_PIXEL` points on
     average over the grid's extent; in each pixel the points within :data:`SURFACE_DEPTH` of
-    the nearest one's range (the front surface; what lies behind it is occluded)."""
+    the nearest one's range (the front surface; what lies behind it is occluded).
+
+    With ``flying``, each depth edge of the image (two neighbouring pixels whose front surfaces lie
+    more than :data:`SURFACE_DEPTH` apart) also reports a *flying pixel*, as time-of-flight and
+    structured-light cameras do: a point on the ray of the nearer pixel's front point, half-way
+    between the two fronts' ranges."""
     offsets = points - camera
     ranges = np.linalg.norm(offsets, axis=1)
     axis = offsets.mean(axis=0)
@@ -83,11 +88,40 @@ def visible(points: FloatArray, camera: FloatArray) -> FloatArray:
     low, extent = angles.min(axis=0), np.ptp(angles, axis=0)
     pixel = float(np.sqrt(max(extent[0] * extent[1], 1e-24) * POINTS_PER_PIXEL / points.shape[0]))
     cells = np.floor((angles - low) / pixel).astype(np.int64)
-    key = cells[:, 0] * (int(cells[:, 1].max()) + 1) + cells[:, 1]
-    nearest = np.full(int(key.max()) + 1, np.inf)
+    rows, width = (int(cells[:, 0].max()) + 1, int(cells[:, 1].max()) + 1)
+    key = cells[:, 0] * width + cells[:, 1]
+    nearest = np.full(rows * width, np.inf)
     np.minimum.at(nearest, key, ranges)
-    seen: FloatArray = points[ranges <= nearest[key] * (1.0 + SURFACE_DEPTH)]
-    return seen
+    front = ranges <= nearest[key] * (1.0 + SURFACE_DEPTH)
+    seen: FloatArray = points[front]
+    if not flying:
+        return seen
+    # The image: each pixel's front range and the row of its first point at that range.
+    image = nearest.reshape(rows, width)
+    at_front = np.flatnonzero(ranges == nearest[key])
+    pixels, first = np.unique(key[at_front], return_index=True)
+    ray = np.full(nearest.size, -1)
+    ray[pixels] = at_front[first]
+    flown = []
+    for near, far, near_ray in _edges(image, ray.reshape(image.shape)):
+        flown.append(camera + offsets[near_ray] * (0.5 * (near + far) / ranges[near_ray])[:, None])
+    return np.concatenate([seen, *flown])
+
+
+def _edges(image: FloatArray, ray: np.ndarray) -> list[tuple[FloatArray, FloatArray, np.ndarray]]:
+    """The depth edges between horizontally and vertically neighbouring pixels of ``image``
+    (front ranges, inf where empty): per direction, the nearer front, the farther one and the
+    nearer pixel's ray (a row of the points)."""
+    found = []
+    for first, second, first_ray, second_ray in (
+        (image[:-1], image[1:], ray[:-1], ray[1:]),
+        (image[:, :-1], image[:, 1:], ray[:, :-1], ray[:, 1:]),
+    ):
+        near, far = np.minimum(first, second), np.maximum(first, second)
+        edge = np.isfinite(far) & (far > near * (1.0 + SURFACE_DEPTH))
+        near_ray = np.where(first <= second, first_ray, second_ray)
+        found.append((near[edge], far[edge], near_ray[edge]))
+    return found
 
 
 def ring_sampled(points: FloatArray, camera: FloatArray, channels: int) -> FloatArray:

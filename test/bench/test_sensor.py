@@ -83,3 +83,19 @@ def test_a_lidar_keeps_thin_rings_evenly_spread_over_the_elevations() -> None:
     assert set(beam.astype(int)) == set(range(8))
     assert np.abs(elevation - (full.min() + beam * spacing)).max() <= 0.1 * spacing + 1e-12
     assert 0.1 < rings.shape[0] / wall.shape[0] < 0.3
+
+
+def test_flying_pixels_lie_between_the_fronts_at_a_depth_edge() -> None:
+    """The panel before the wall: the extra points lie half-way (x = 3) on rays through the
+    panel's rim, about one per pixel along its outline, none elsewhere."""
+    rng = np.random.default_rng(6)
+    panel = np.column_stack([np.full(4000, 2.0), rng.uniform(-0.5, 0.5, (4000, 2))])
+    wall = np.column_stack([np.full(16000, 4.0), rng.uniform(-2.0, 2.0, (16000, 2))])
+    clouds = np.concatenate([panel, wall])
+    plain, flown = visible(clouds, np.zeros(3)), visible(clouds, np.zeros(3), flying=True)
+    np.testing.assert_array_equal(flown[: plain.shape[0]], plain)
+    extra = flown[plain.shape[0] :]
+    assert 40 < extra.shape[0] < 400
+    np.testing.assert_allclose(extra[:, 0], 3.0, atol=0.05)  # half-way along x between 2 and 4
+    rim = np.max(np.abs(extra[:, 1:] / extra[:, :1] * 2.0), axis=1)  # where the ray meets the panel
+    assert np.all((rim > 0.4) & (rim < 0.51))
