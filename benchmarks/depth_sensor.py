@@ -17,18 +17,17 @@ The sensor: Gaussian noise along the ray of 0.1 % of the scene's diagonal at the
 steps of 0.5, 1 or 2 % of it there (``--steps``), both growing with the range squared. The
 scenes: the development ones (rs1, the bunny, the dragon) and three held-out clouds (the chef
 figure, the second dragon sampling, a real bunny scan); the method was never looked at on this
-noise model. Each case is also registered
-from the truth (warm, before the cold retry: ``trustworthy.from_truth``): right and reliable there
-says the data determine the pose to the tolerance. Scored like trustworthy.py: right = rotation
-< 1 deg, scale < 1 %, translation < 0.5 % of the model's diagonal; what must be 0 is **wrong and
-reliable**.
+noise model. Each case is also registered from the truth (warm, before the cold retry:
+``trustworthy.from_truth``): right and reliable there says the data determine the pose to the
+tolerance. Scored like trustworthy.py: right = rotation < 1 deg, scale < 1 %, translation < 0.5 %
+of the model's diagonal; what must be 0 is **wrong and reliable**.
 
 ``--occlusion``: each camera keeps only the points it sees (:func:`frisicp_bench.sensor.visible`,
 a z-buffer), so two frames also differ in what each one's foreground hides.
 
-``--flying``: with ``--occlusion``, every pixel that straddles a depth edge also reports a
-flying pixel half-way between its front and its back (``visible(..., flying=True)``), the
-mixed pixels of time-of-flight and structured-light cameras.
+``--flying``: with ``--occlusion``, every depth edge of the image (neighbouring pixels whose
+fronts lie apart) also reports a flying pixel half-way between the two fronts
+(``visible(..., flying=True)``), the mixed pixels of time-of-flight and structured-light cameras.
 
 ``--rings N``: a spinning lidar's sampling instead of a camera's raster: N beams over the
 view's elevations, each keeping a thin band of points (:func:`frisicp_bench.sensor.ring_sampled`),
@@ -42,8 +41,7 @@ range, in each cloud's own units (the sensor's step, known in its frame), before
 
 Usage: python benchmarks/depth_sensor.py [--jobs 2] [--data DIR] [--steps 0.005,0.01,0.02]
                                          [--suite frames] [--occlusion [--flying]] [--rings N]
-                                         [--average F]
-                                         [--draw N] [--out docs/depth_sensor.md]
+                                         [--average F] [--draw N] [--out docs/depth_sensor.md]
        python benchmarks/depth_sensor.py --quick   # one frame pair and one crop of rs1 -> build/
 Exits 0 without measuring when the data folder is absent, saying so.
 """
@@ -93,8 +91,8 @@ def score(
     flying: bool = False,
 ) -> dict[str, Any]:
     """Build, register (cold and from the truth) and score one case, deterministic in its key and
-    ``draw``: (suite, scene, depth step, shift or share, repeat); with ``average`` > 0 both clouds
-    averaged on voxels of ``average`` depth steps first (module doc)."""
+    ``draw``: (suite, scene, depth step, shift or share, repeat); ``occlusion``, ``flying``,
+    ``rings`` and ``average`` as the options of the same names (module doc)."""
     suite, scene_name, step, size, repeat = key
     salt = f"{suite}/{scene_name}/{step}/{size}/{repeat}" + (f"/draw {draw}" if draw else "")
     rng = np.random.default_rng(zlib.crc32(salt.encode()))

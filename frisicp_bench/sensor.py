@@ -10,11 +10,14 @@ depth data"): it measures disparity d = f b / z, so
   angle comes out as terraces.
 
 Two frames from nearby viewpoints share nearly the same shells, and registration can lock the
-terraces of one onto the other's instead of the surfaces (the pose of the "identity" motion of
-the sensor), the artefact this module lets a benchmark provoke.
+terraces of one onto the other's instead of the surfaces: the artefact this module lets a
+benchmark provoke (benchmarks/depth_sensor.py). Both magnitudes are given as shares of a length
+(the scene's diagonal) at the median range of the cloud, so one number describes the same sensor
+whatever the scene's units.
 
-Both magnitudes are given as shares of a length (the scene's diagonal) at the median range of
-the cloud, so one number describes the same sensor whatever the scene's units.
+What a sensor at a place keeps of the points (a :data:`Sight`): :func:`visible`, the front
+surface only (a z-buffer), optionally with the flying pixels of depth edges; :func:`ring_sampled`,
+a spinning lidar's rings instead of a camera's raster.
 """
 
 from __future__ import annotations
