@@ -29,6 +29,9 @@ a z-buffer), so two frames also differ in what each one's foreground hides.
 fronts lie apart) also reports a flying pixel half-way between the two fronts
 (``visible(..., flying=True)``), the mixed pixels of time-of-flight and structured-light cameras.
 
+``--on-shells``: the noise before the quantisation, as in a camera, so every reported depth lies
+exactly on a shell and the terraces are flat (by default the noise comes after it and blurs them).
+
 ``--rings N``: a spinning lidar's sampling instead of a camera's raster: N beams over the
 view's elevations, each keeping a thin band of points (:func:`frisicp_bench.sensor.ring_sampled`),
 so the clouds come as rings; with ``--steps 0`` its noise is along the rays only (a lidar's
@@ -40,7 +43,8 @@ ranges are not quantised in disparity).
 range, in each cloud's own units (the sensor's step, known in its frame), before the cap.
 
 Usage: python benchmarks/depth_sensor.py [--jobs 2] [--data DIR] [--steps 0.005,0.01,0.02]
-                                         [--suite frames] [--occlusion [--flying]] [--rings N]
+                                         [--suite frames] [--occlusion [--flying]] [--on-shells]
+                                         [--rings N]
                                          [--average F] [--draw N] [--out docs/depth_sensor.md]
        python benchmarks/depth_sensor.py --quick   # one frame pair and one crop of rs1 -> build/
 Exits 0 without measuring when the data folder is absent, saying so.
@@ -89,10 +93,11 @@ def score(
     occlusion: bool = False,
     rings: int = 0,
     flying: bool = False,
+    on_shells: bool = False,
 ) -> dict[str, Any]:
     """Build, register (cold and from the truth) and score one case, deterministic in its key and
     ``draw``: (suite, scene, depth step, shift or share, repeat); ``occlusion``, ``flying``,
-    ``rings`` and ``average`` as the options of the same names (module doc)."""
+    ``on_shells``, ``rings`` and ``average`` as the options of the same names (module doc)."""
     suite, scene_name, step, size, repeat = key
     salt = f"{suite}/{scene_name}/{step}/{size}/{repeat}" + (f"/draw {draw}" if draw else "")
     rng = np.random.default_rng(zlib.crc32(salt.encode()))
@@ -104,9 +109,11 @@ def score(
     scene = object_cloud(data_dir, scene_name)
     name = Path(scene_name).stem
     if suite == "frames":
-        case = sensed_frames_case(scene, name, step, size, NOISE, rng, sight)
+        case = sensed_frames_case(scene, name, step, size, NOISE, rng, sight, on_shells)
     else:
-        case = sensed_crop_case(scene, name, size, float(rng.choice(PAPER_SCALES)), step, NOISE, rng, sight)
+        case = sensed_crop_case(
+            scene, name, size, float(rng.choice(PAPER_SCALES)), step, NOISE, rng, sight, on_shells
+        )
     assert case.truth is not None
     data, model = case.data, case.model
     if average > 0:
@@ -252,6 +259,9 @@ def main(argv: list[str] | None = None) -> int:
         "--flying", action="store_true", help="with --occlusion: flying pixels at depth edges"
     )
     command.add_argument(
+        "--on-shells", action="store_true", help="the noise before the quantisation: depths exactly on shells"
+    )
+    command.add_argument(
         "--rings",
         type=int,
         default=0,
@@ -292,6 +302,7 @@ def main(argv: list[str] | None = None) -> int:
         occlusion=args.occlusion,
         rings=args.rings,
         flying=args.flying,
+        on_shells=args.on_shells,
     )
     records = script.map_cases(args, work, cases, line)
     if records is None:
@@ -300,6 +311,7 @@ def main(argv: list[str] | None = None) -> int:
         TITLE
         + (", each camera seeing only what is in front" if args.occlusion else "")
         + (", with flying pixels at depth edges" if args.flying else "")
+        + (", depths exactly on the shells" if args.on_shells else "")
         + (f", in {args.rings} lidar rings" if args.rings else "")
         + (f", averaged on voxels of {args.average:g} steps" if args.average else "")
     )

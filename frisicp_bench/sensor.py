@@ -47,23 +47,32 @@ Sight = Callable[[FloatArray, FloatArray], FloatArray]
 
 
 def depth_sensor(
-    points: FloatArray, camera: FloatArray, noise: float, step: float, rng: np.random.Generator
+    points: FloatArray,
+    camera: FloatArray,
+    noise: float,
+    step: float,
+    rng: np.random.Generator,
+    on_shells: bool = False,
 ) -> FloatArray:
     """``points`` as a depth camera at ``camera`` reports them: each range quantised in disparity,
     the depth step ``step`` at the median range (0: none), then Gaussian noise along the ray,
-    sigma ``noise`` at the median range, both growing with the range squared."""
+    sigma ``noise`` at the median range, both growing with the range squared. With
+    ``on_shells`` the noise comes first and the quantisation last, as in a camera, whose
+    reported depths lie exactly on its shells."""
     offsets = points - camera
     ranges = np.linalg.norm(offsets, axis=1)
     rays = offsets / ranges[:, None]
     median = float(np.median(ranges))
-    reported = ranges
+    noisy = rng.normal(size=ranges.shape) * noise * (ranges / median) ** 2
+    reported = ranges + noisy if on_shells else ranges
     if step > 0:
         # Disparity 1 / z in steps of `quantum`: depth steps are z^2 * quantum apart, `step` at the
         # median range.
         quantum = step / median**2
-        disparity = np.maximum(np.round(1.0 / ranges / quantum), 1.0) * quantum
+        disparity = np.maximum(np.round(1.0 / np.maximum(reported, 1e-300) / quantum), 1.0) * quantum
         reported = 1.0 / disparity
-    reported = reported + rng.normal(size=ranges.shape) * noise * (ranges / median) ** 2
+    if not on_shells:
+        reported = reported + noisy
     sensed: FloatArray = camera + rays * reported[:, None]
     return sensed
 
@@ -158,6 +167,7 @@ def sensed_frames_case(
     noise: float,
     rng: np.random.Generator,
     sight: Sight | None = None,
+    on_shells: bool = False,
 ) -> SceneCase:
     """Two overlapping depth frames: boxes of 40 % of the scene, ``shift`` of the box's width apart,
     each re-sampled from its own half of the scene's points and seen by its own camera (the second
@@ -165,7 +175,7 @@ def sensed_frames_case(
     ``step`` as shares of the scene's diagonal); the data moved by a small motion (up to 5
     degrees, 1-5 % scale drift), as :func:`frisicp_bench.scenes.frames_case` does. With
     ``sight`` each camera keeps only what that says it measures (:func:`visible`,
-    :func:`ring_sampled`)."""
+    :func:`ring_sampled`); ``on_shells`` as :func:`depth_sensor` takes it."""
     diagonal = model_size(scene)
     first = scene[rng.integers(scene.shape[0])]
     halves = rng.random(scene.shape[0]) < 0.5
@@ -179,7 +189,7 @@ def sensed_frames_case(
     def sensed(points: FloatArray, at: FloatArray) -> FloatArray:
         kept = resampled(points, rng.uniform(0.5, 1.0), 0.0, rng)
         return depth_sensor(
-            kept if sight is None else sight(kept, at), at, noise * diagonal, step * diagonal, rng
+            kept if sight is None else sight(kept, at), at, noise * diagonal, step * diagonal, rng, on_shells
         )
 
     data = sensed(view, camera)
@@ -198,9 +208,10 @@ def sensed_crop_case(
     noise: float,
     rng: np.random.Generator,
     sight: Sight | None = None,
+    on_shells: bool = False,
 ) -> SceneCase:
     """A crop of ``share`` of the scene (30-100 % of its points kept) seen by a depth camera
-    (:func:`depth_sensor`; with ``sight`` only what that keeps), moved by
+    (:func:`depth_sensor`, ``on_shells`` as it takes it; with ``sight`` only what that keeps), moved by
     ``frisicp bench``'s protocol at ``scale`` (turned up to 30 degrees), onto the scene as it is
     (a map made otherwise)."""
     diagonal = model_size(scene)
@@ -208,7 +219,7 @@ def sensed_crop_case(
     camera = camera_facing(crop, rng)
     if sight is not None:
         crop = sight(crop, camera)
-    sensed = depth_sensor(crop, camera, noise * diagonal, step * diagonal, rng)
+    sensed = depth_sensor(crop, camera, noise * diagonal, step * diagonal, rng, on_shells)
     moved = protocol_similarity(scene, scale, 30.0, rng)
     return SceneCase(
         f"{name} {share:.0%} s={scale:.3g}", "crop onto scene", moved.apply(sensed), scene, moved.inverse()

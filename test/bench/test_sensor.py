@@ -99,3 +99,14 @@ def test_flying_pixels_lie_between_the_fronts_at_a_depth_edge() -> None:
     np.testing.assert_allclose(extra[:, 0], 3.0, atol=0.05)  # half-way along x between 2 and 4
     rim = np.max(np.abs(extra[:, 1:] / extra[:, :1] * 2.0), axis=1)  # where the ray meets the panel
     assert np.all((rim > 0.4) & (rim < 0.51))
+
+
+def test_on_shells_the_noise_comes_first_and_every_depth_lies_on_a_shell() -> None:
+    rng = np.random.default_rng(7)
+    wall = _wall(rng)
+    blurred = np.linalg.norm(depth_sensor(wall, np.zeros(3), 0.002, 0.05, np.random.default_rng(1)), axis=1)
+    exact = np.linalg.norm(
+        depth_sensor(wall, np.zeros(3), 0.002, 0.05, np.random.default_rng(1), True), axis=1
+    )
+    assert np.unique(np.round(blurred, 9)).size == wall.shape[0]  # noise after the steps: all distinct
+    assert np.unique(np.round(exact, 9)).size < 60  # noise before them: the shells only
