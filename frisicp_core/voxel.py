@@ -64,7 +64,7 @@ def voxel_centroids(points: np.ndarray, size: float) -> np.ndarray:
 
     ``points`` is an (N, m) array of finite values; ``size`` > 0 in the points' units. A mean
     may lie off the surface at edges and corners by up to about half a voxel; a voxel holding
-    one point keeps it exactly. Costs a stable sort of the cells' packed keys, several times
+    one point keeps it exactly. Costs a stable sort of the cells' packed keys, more than
     :func:`voxel_filter`'s lookup table."""
     cells, fits = _cells(points, size, "voxel_centroids")
     n = points.shape[0]
@@ -73,7 +73,7 @@ def voxel_centroids(points: np.ndarray, size: float) -> np.ndarray:
     inside = np.flatnonzero(fits)  # the others (cells beyond float64) are voxels of their own
     kept = [column[inside] for column in cells]
     packed = _packed_keys(kept) if inside.size else None
-    # One packed key sorts several times faster than a lexicographic sort of the columns.
+    # One packed key sorts faster than a lexicographic sort of the columns.
     keys = [packed[0]] if packed is not None else kept
     within = np.argsort(keys[0], kind="stable") if packed is not None else np.lexsort(kept[::-1])
     order = inside[within]
