@@ -73,17 +73,12 @@ def voxel_centroids(points: np.ndarray, size: float) -> np.ndarray:
     inside = np.flatnonzero(fits)  # the others (cells beyond float64) are voxels of their own
     kept = [column[inside] for column in cells]
     packed = _packed_keys(kept) if inside.size else None
-    # One packed key sorts faster than a lexicographic sort of the columns.
-    keys = [packed[0]] if packed is not None else kept
-    within = np.argsort(keys[0], kind="stable") if packed is not None else np.lexsort(kept[::-1])
+    if packed is not None:  # one packed key sorts faster than a lexicographic sort of the columns
+        keys, within = [packed[0]], np.argsort(packed[0], kind="stable")
+    else:
+        keys, within = kept, np.lexsort(kept[::-1])
     order = inside[within]
-    head = np.zeros(order.size, dtype=bool)
-    if order.size:
-        head[0] = True
-    for column in keys:
-        sorted_column = column[within]
-        head[1:] |= sorted_column[1:] != sorted_column[:-1]
-    starts = np.flatnonzero(head)
+    starts = np.flatnonzero(_run_starts(within, keys))
     values = np.asarray(points, dtype=np.float64)
     sums = np.add.reduceat(values[order], starts, axis=0) if starts.size else values[:0]
     counts = np.diff(np.append(starts, order.size))
@@ -175,12 +170,16 @@ def _first_by_lexsort(cells: list[np.ndarray]) -> np.ndarray:
 
 def _heads(order: np.ndarray, keys: list[np.ndarray]) -> np.ndarray:
     """Mask of the rows that start a run of equal keys in the *stable* sort ``order``."""
-    n = order.shape[0]
-    head = np.zeros(n, dtype=bool)
-    head[0] = True
+    keep = np.zeros(order.shape[0], dtype=bool)
+    keep[order[_run_starts(order, keys)]] = True
+    return keep
+
+
+def _run_starts(order: np.ndarray, keys: list[np.ndarray]) -> np.ndarray:
+    """Mask over the positions of the sort ``order``: where a run of equal keys begins."""
+    head = np.zeros(order.shape[0], dtype=bool)
+    head[:1] = True
     for column in keys:
         sorted_column = column[order]
         head[1:] |= sorted_column[1:] != sorted_column[:-1]
-    keep = np.zeros(n, dtype=bool)
-    keep[order[head]] = True
-    return keep
+    return head
