@@ -63,7 +63,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from trustworthy import from_truth
+from trustworthy import from_truth, pose_determined
 
 from frisicp_bench import script
 from frisicp_bench.cases import PAPER_SCALES
@@ -167,10 +167,6 @@ def line(record: dict[str, Any]) -> str:
     )
 
 
-def determined(record: dict[str, Any]) -> bool:
-    return bool(record["truth_start"]["right"] and record["truth_start"]["reliable"])
-
-
 def table(records: list[dict[str, Any]]) -> tuple[list[str], list[list[object]]]:
     header = [
         "depth step",
@@ -203,7 +199,7 @@ def table(records: list[dict[str, Any]]) -> tuple[list[str], list[list[object]]]
                         sum(r["success"] for r in group),
                         sum(r["success"] and r["reliable"] for r in group),
                         f"**{wrong_but_reliable(group)}**",
-                        sum(determined(r) for r in group),
+                        sum(pose_determined(r) for r in group),
                         sum(r["success"] and not r["reliable"] for r in group),
                     ]
                 )
