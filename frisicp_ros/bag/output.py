@@ -39,7 +39,8 @@ def pair_record(pair: BagPair, outcome: PairOutcome) -> dict[str, object]:
 
     ``ok`` is true only for a pose to use: registered and ``reliable``. Otherwise ``reason`` says
     why: a rejected pair (also in ``rejection``, with ``rejected_input``) or an implausible result
-    (its numbers are still given, for diagnosis).
+    (its numbers are still given, for diagnosis). ``data_depth_steps``, only where found: the
+    data clouds' coarse depth steps (``frisicp_ros.stream.depth_check``).
     """
     record: dict[str, object] = {
         "pair": pair.index,
@@ -56,6 +57,14 @@ def pair_record(pair: BagPair, outcome: PairOutcome) -> dict[str, object]:
         return record
     record.update(result_summary(outcome.result))
     record["iterations_per_level"] = list(outcome.result.iterations)
+    steps = outcome.depth_steps
+    if steps is not None and steps.coarse:
+        record["data_depth_steps"] = {
+            "depth": steps.depth,
+            "step": steps.step,
+            "median_depth": steps.median_depth,
+            "share": steps.share,
+        }
     return record
 
 

@@ -64,6 +64,7 @@ class RunStats:
     rms: list[float] = field(default_factory=list)  # of the reliable results
     register_seconds: float = 0.0
     last: str = "before the first pair"
+    depth_step_advice: str = ""  # the first advice about the data clouds' depth steps
 
     def add(self, pair: BagPair, outcome: PairOutcome) -> None:
         self.pairs += 1
@@ -72,6 +73,7 @@ class RunStats:
         if not isinstance(outcome, Registered):
             self.rejected += 1
             return
+        self.depth_step_advice = self.depth_step_advice or outcome.depth_step_advice
         self.converged += outcome.result.converged
         if not outcome.reliable:
             self.unreliable += 1
@@ -97,6 +99,8 @@ class RunStats:
                 f'; {self.unreliable} implausible results are marked "reliable": false and left out'
                 f" of the result bag (first: {self.first_unreliable})"
             )
+        if self.depth_step_advice:
+            text += f"; {self.depth_step_advice}"
         return text
 
 

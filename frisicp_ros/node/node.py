@@ -62,7 +62,7 @@ from frisicp_ros.stream.outputs import (
     tf_message,
 )
 from frisicp_ros.stream.pairing import Pairer, PairingMode
-from frisicp_ros.stream.pipeline import PairOutcome, Rejected, describe
+from frisicp_ros.stream.pipeline import PairOutcome, Registered, Rejected, describe
 from frisicp_ros.stream.settings import SubscriptionQos, Value, settings_from
 from frisicp_ros.stream.stamps import stamp_ns
 
@@ -155,6 +155,7 @@ class RegistrationParts:
         self._status = NodeStatus(
             stale_after=float(values["stale_after"]), fix_for_lost_scans=_lost_scan_fix()
         )
+        self._depth_step_advice = ""  # the last advice logged about the data clouds' depth steps
         self._output_publishers = {
             suffix: create_publisher(self._types[type_name], f"~/{suffix}", OUTPUT_QOS)
             for suffix, type_name in OUTPUT_TOPICS.items()
@@ -427,6 +428,10 @@ class RegistrationParts:
 
     def _publish(self, outcome: PairOutcome, data_cloud: PointCloud2, received_at: float | None) -> None:
         started = time.perf_counter()
+        if isinstance(outcome, Registered) and outcome.depth_step_advice != self._depth_step_advice:
+            self._depth_step_advice = outcome.depth_step_advice  # said once per finding, not per pair
+            if outcome.depth_step_advice:
+                self.get_logger().warning(outcome.depth_step_advice)
         if isinstance(outcome, Rejected):
             self.get_logger().warning(f"skipped: {outcome.reason}", throttle_duration_sec=_WARN_THROTTLE_SEC)
             self._status.record(outcome, None, 0.0)

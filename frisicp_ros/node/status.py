@@ -10,8 +10,9 @@ published), "unreliable results" (registered but implausible: not published), "r
 last pair failed in any of these ways, and ERROR after :data:`ERROR_AFTER_FAILURES` failures in a
 row or when the registration worker has stopped. It is WARN, with what to do, when no data cloud
 arrived for ``stale_after`` seconds, when ``~/reset`` left no model (a latched map is not sent
-again), and when the data clouds' stamps show that more than :data:`LOST_SHARE_WARN` of them never
-arrived (``stamp_gaps``).
+again), when the data clouds' stamps show that more than :data:`LOST_SHARE_WARN` of them never
+arrived (``stamp_gaps``), and when the data clouds come in coarse depth steps
+(``frisicp_ros.stream.depth_check``).
 """
 
 from __future__ import annotations
@@ -64,6 +65,8 @@ class NodeStatus:
         self._registered = 0
         self._registered_since_report = 0
         self._last_registered: Registered | None = None
+        self._depth_steps = "not checked"  # the data clouds' depth steps, as last found
+        self._depth_step_advice = ""
         self._latency: deque[float] = deque(maxlen=window)
         self._transport: deque[float] = deque(maxlen=window)  # data clouds: publication -> DDS receipt
         self._callback_delay: deque[float] = deque(maxlen=window)  # DDS receipt -> callback
@@ -111,6 +114,8 @@ class NodeStatus:
                 self._last_rejection = outcome.reason
                 self._failed(f"pair rejected: {outcome.reason}")
                 return
+            self._depth_steps = "none found" if outcome.depth_steps is None else str(outcome.depth_steps)
+            self._depth_step_advice = outcome.depth_step_advice
             if not outcome.reliable:
                 scale = outcome.result.similarity.scale
                 self._unreliable += 1
@@ -186,6 +191,7 @@ class NodeStatus:
                 ),
                 "initial guess": ("pending: " if guess_pending else "") + (self._guess or "none"),
                 "/tf": self._tf,
+                "data depth steps": self._depth_steps,
             }
             values.update(self._latency_values())
             values.update(self._result_values())
@@ -281,6 +287,8 @@ class NodeStatus:
             )
         if self._last_registered is None or self._reset_since_registered:
             return WARN, "waiting for clouds" if has_model else "waiting for a model cloud"
+        if self._depth_step_advice:
+            return WARN, self._depth_step_advice
         return OK, "registering"
 
 

@@ -22,6 +22,9 @@ registered against the map around its predicted pose (``frisicp_core.window``). 
 prepared once for the whole run. Memory: about 60 bytes per map point, more once a cold search
 has described it (docs/node.md).
 
+Data clouds are looked at for a depth camera's coarse depth steps now and then
+(``frisicp_ros.stream.depth_check``); a registered pair carries the finding and its advice.
+
 Frames: a configured ``model_frame``/``data_frame`` must match; in synchronized mode a stream's
 frame must stay what it was at the last registered pair (else the pair is rejected; ``reset()``
 accepts the new one); in latest_model mode a frame change only drops the warm start.
@@ -36,6 +39,8 @@ from typing import Literal
 import numpy as np
 
 from frisicp_core import InitialGuess, PreparedModel, RegistrationResult, Similarity, register
+from frisicp_core.depth_steps import DepthSteps
+from frisicp_ros.stream.depth_check import DepthStepCheck, depth_step_advice
 from frisicp_ros.stream.messages import CloudLayoutLike, PointCloud2Like
 from frisicp_ros.stream.motion import MotionModel, MotionTracker
 from frisicp_ros.stream.pairing import PairingMode
@@ -86,13 +91,17 @@ class Registered(PairHeader):
     model's: those of the window around the predicted pose when one was used).
 
     ``reliable`` False: the result failed the plausibility checks (``reason`` says which); it is
-    reported but must not be published or used as a pose.
+    reported but must not be published or used as a pose. ``depth_steps``: the shells the data
+    stream's depth was last found in (``frisicp_ros.stream.depth_check``; None: none), and
+    ``depth_step_advice`` what to do about them ("" when nothing).
     """
 
     result: RegistrationResult
     data_points: int
     model_points: int
     timings: Timings
+    depth_steps: DepthSteps | None = None
+    depth_step_advice: str = ""
 
     @property
     def reliable(self) -> bool:
@@ -137,6 +146,7 @@ class RegistrationPipeline:
         self._model_cache: tuple[PointCloud2Like, PreparedModel] | None = None
         self._frames: dict[str, str] = {}
         self._guess: InitialGuess | None = None
+        self._depth_steps = DepthStepCheck()
 
     @property
     def previous(self) -> Similarity | None:
@@ -169,6 +179,7 @@ class RegistrationPipeline:
         self._track = None
         self._model_cache = None
         self._frames = {}
+        self._depth_steps.reset()
 
     def update_settings(self, settings: PipelineSettings) -> None:
         """New settings; anything they invalidate (point caps, voxels, dims) is forgotten."""
@@ -220,6 +231,7 @@ class RegistrationPipeline:
             data = self._read(data_msg)
         except CloudError as err:
             return Rejected(**vars(header), reason=f"data cloud: {err}", input="data")
+        depth_steps = self._depth_steps.look(data.points, header.data_frame)
         # A pending guess replaces the warm start for this one registration (used up even when the
         # core refuses the pair: a guess is for the next registration, not for a later one).
         guess, self._guess = self._guess, None
@@ -244,6 +256,8 @@ class RegistrationPipeline:
             data_points=len(data.points),
             model_points=result.window_points or len(model),
             timings=timings,
+            depth_steps=depth_steps,
+            depth_step_advice=depth_step_advice(depth_steps, settings.voxel_mode, settings.voxel_size),
         )
 
     def _read(self, msg: CloudLayoutLike, capped: bool = True) -> CloudPoints:

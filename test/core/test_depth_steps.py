@@ -1,0 +1,121 @@
+"""Depth steps: a depth camera's quantised shells are found, with their spacing; surfaces are not."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from support.data import shared_file
+
+from frisicp_core import read_points
+from frisicp_core.depth_steps import COARSE_SHARE, find_depth_steps
+
+# A camera at the origin looking along +z (an optical frame) into a room corner 2-4 m away.
+MEDIAN_DEPTH_GUESS = 3.0
+
+
+def room_corner(rng: np.random.Generator, n: int = 30_000) -> np.ndarray:
+    """A floor and two walls at angles to the view, in front of the camera (z in 2-4 m)."""
+    u, v = rng.uniform(-1.0, 1.0, size=(2, n))
+    part = rng.integers(0, 3, size=n)
+    floor = np.column_stack([1.2 * u, np.full(n, 1.0), 3.0 + v])
+    left = np.column_stack([-1.2 + 0.6 * (v + 1), 0.9 * u, 3.0 + 0.8 * v])
+    right = np.column_stack([1.2 - 0.6 * (v + 1), 0.9 * u, 3.0 - 0.8 * v + 0.5 * (u + 1) * 0.3])
+    points: np.ndarray = np.choose(part[:, None], [floor, left, right])
+    return points
+
+
+def quantised(
+    points: np.ndarray, step: float, depth: str, rng: np.random.Generator, noise: float = 0.0
+) -> np.ndarray:
+    """``points`` with their depth (z, or the range) put on disparity shells ``step`` apart at
+    :data:`MEDIAN_DEPTH_GUESS`, then blurred by Gaussian ``noise`` (a share of the step) along
+    the ray, as :mod:`frisicp_bench.sensor` does."""
+    measure = points[:, 2] if depth == "z" else np.linalg.norm(points, axis=1)
+    quantum = step / MEDIAN_DEPTH_GUESS**2
+    reported = 1.0 / (np.round(1.0 / measure / quantum) * quantum)
+    reported = reported * (1.0 + noise * step * rng.normal(size=reported.shape) / measure)
+    moved: np.ndarray = points * (reported / measure)[:, None]
+    return moved
+
+
+def expected_step(points: np.ndarray, step: float, depth: str) -> float:
+    """The step at the cloud's own median depth (it grows with the depth squared)."""
+    measure = points[:, 2] if depth == "z" else np.linalg.norm(points, axis=1)
+    return step * (float(np.median(measure)) / MEDIAN_DEPTH_GUESS) ** 2
+
+
+@pytest.mark.parametrize("depth", ["z", "range"])
+@pytest.mark.parametrize("noise", [0.0, 0.1])
+def test_a_depth_cameras_shells_are_found_with_their_spacing(depth, noise):
+    rng = np.random.default_rng(1)
+    step = 0.06  # about 1.7 % of the room corner's 3.5 m diagonal: coarse
+    cloud = quantised(room_corner(rng), step, depth, rng, noise)
+    found = find_depth_steps(cloud)
+    assert found is not None
+    assert found.depth == depth
+    assert found.step == pytest.approx(expected_step(cloud, step, depth), rel=0.02)
+    assert found.share == pytest.approx(found.step / np.linalg.norm(np.ptp(cloud, axis=0)))
+    assert found.coarse
+    assert found.coherence > (0.99 if noise == 0 else 0.7)  # exp(-2 pi^2 0.1^2) = 0.82
+    assert "depth steps of 0.0" in str(found)
+
+
+def test_fine_shells_are_found_but_not_coarse():
+    rng = np.random.default_rng(2)
+    cloud = quantised(room_corner(rng), 0.012, "z", rng)  # 0.3 % of the diagonal
+    found = find_depth_steps(cloud)
+    assert found is not None and found.share < COARSE_SHARE
+    assert found.step == pytest.approx(expected_step(cloud, 0.012, "z"), rel=0.02)
+
+
+def test_a_few_shells_deep_the_spacing_is_not_taken_for_half_of_it():
+    # A plane 2.9-3.1 m away, across 3.3 shells: a broad peak at the shells' frequency, a
+    # narrow one at twice it.
+    rng = np.random.default_rng(6)
+    n = 20_000
+    u, v = rng.uniform(-1.0, 1.0, size=(2, n))
+    plane = np.column_stack([0.6 * u, 0.4 * v, 3.0 + 0.1 * u])
+    cloud = quantised(plane, 0.06, "z", rng)
+    found = find_depth_steps(cloud)
+    assert found is not None and found.shells < 4
+    assert found.step == pytest.approx(expected_step(cloud, 0.06, "z"), rel=0.05)
+
+
+def test_shells_buried_in_noise_are_not_reported():
+    rng = np.random.default_rng(3)
+    cloud = quantised(room_corner(rng), 0.06, "z", rng, noise=0.5)  # coherence exp(-2 pi^2 / 4) = 0.007
+    assert find_depth_steps(cloud) is None
+
+
+def test_surfaces_without_shells_are_not_reported():
+    rng = np.random.default_rng(4)
+    room = room_corner(rng)
+    assert find_depth_steps(room + rng.normal(scale=0.002, size=room.shape)) is None
+    # One wall facing the camera is a single shell (every depth equal, up to the noise), two
+    # walls two of them: broad peaks, no comb.
+    n = 20_000
+    wall = np.column_stack(
+        [rng.uniform(-1, 1, n), rng.uniform(-1, 1, n), 2.5 + rng.normal(scale=0.001, size=n)]
+    )
+    assert find_depth_steps(wall) is None
+    farther = wall + np.array([0.0, 0.0, 0.4])
+    assert find_depth_steps(np.concatenate([wall, farther])) is None
+
+
+@pytest.mark.parametrize(
+    "relative",
+    ["real/rs1.pcd", "real/cturtle.pcd", "real/dragon1.xyz", "real/bunny_part1.xyz", "bunny/bun000.ply"],
+)
+def test_real_scans_show_no_coarse_shells(relative):
+    found = find_depth_steps(read_points(shared_file(relative)))
+    assert found is None or not found.coarse
+
+
+def test_what_it_does_not_look_at():
+    rng = np.random.default_rng(5)
+    cloud = quantised(room_corner(rng), 0.06, "z", rng)
+    assert find_depth_steps(cloud[:400]) is None  # too few points
+    assert find_depth_steps(cloud[:, :2]) is None  # 2-D
+    assert find_depth_steps(-cloud) is None  # behind the sensor along every axis; the range...
+    assert find_depth_steps(cloud - np.array([0.0, 0.0, 1.5])) is None  # ...and moved off the sensor's origin
+    assert find_depth_steps(np.zeros((1000, 3))) is None  # no extent
