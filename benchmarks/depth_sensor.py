@@ -22,6 +22,14 @@ noise model. Each case is also registered from the truth (warm, before the cold 
 tolerance. Scored like trustworthy.py: right = rotation < 1 deg, scale < 1 %, translation < 0.5 %
 of the model's diagonal; what must be 0 is **wrong and reliable**.
 
+*Through the stream*: the node and ``frisicp bag`` see each cloud in its sensor's frame and do not
+trust a pose between two clouds that both come in coarse depth steps
+(``frisicp_ros.stream.depth_check.terrace_refusal``; the frames here, not the crops, whose model
+is the scene as it is). Each case records the steps ``frisicp_core.find_depth_steps`` finds in
+each cloud about its camera, and whether the stream would refuse a reliable result; the last two
+columns count what a stream user gets (averaged clouds, ``--average``, are as the stream's advice
+asks, and are not refused).
+
 ``--occlusion``: each camera keeps only the points it sees (:func:`frisicp_bench.sensor.visible`,
 a z-buffer), so two frames also differ in what each one's foreground hides.
 
@@ -72,6 +80,8 @@ from frisicp_bench.report import case_record, write_report, wrong_but_reliable
 from frisicp_bench.scenes import object_cloud
 from frisicp_bench.sensor import ring_sampled, sensed_crop_case, sensed_frames_case, visible
 from frisicp_core import downsample, register, voxel_centroids
+from frisicp_core.depth_steps import find_depth_steps
+from frisicp_ros.stream.depth_check import terrace_refusal
 
 TITLE = "Depth-sensor noise: frames and crops with errors along the rays and quantised depth"
 SCENES = ("rs1.pcd", "bun_zipper.ply", "dragon1.xyz", "chef.pcd", "dragon2.xyz", "bunny_part2.xyz")
@@ -129,6 +139,13 @@ def score(
     warm = from_truth(data, model, case.truth)
     from_the_truth = pose_errors(warm.similarity, case.truth, data, case.model_diagonal)
     sigmas = result.uncertainty
+    # What the node and frisicp bag see: each cloud in its sensor's frame, about the origin.
+    found = [
+        None if sensor is None else find_depth_steps(cloud - sensor)
+        for cloud, sensor in zip((data, model), case.sensors, strict=True)
+    ]
+    # Averaged (--average), the clouds are as the advice asks: the stream does not refuse them.
+    stream_refusal = "" if average > 0 else terrace_refusal(found[0], found[1], "first", 0.0)
     return case_record(
         errors,
         result,
@@ -137,6 +154,9 @@ def score(
         step=step,
         case=case.name,
         reason=result.reason,
+        data_depth_step=None if found[0] is None else found[0].share,
+        model_depth_step=None if found[1] is None else found[1].share,
+        stream_refused=bool(result.reliable and stream_refusal),
         three_sigma=None
         if sigmas is None
         else [3 * sigmas.rotation_deg, 3 * sigmas.scale, 3 * sigmas.translation / case.model_diagonal],
@@ -160,6 +180,7 @@ def percent(step: float) -> str:
 def line(record: dict[str, Any]) -> str:
     verdict = "reliable" if record["reliable"] else record["reason"][:50]
     flag = "  WRONG AND RELIABLE" if record["reliable"] and not record["success"] else ""
+    flag += " (refused by the stream)" if record["stream_refused"] else ""
     return (
         f"step {percent(record['step'])} % {record['suite']:15s} {record['case']:28s} "
         f"{'ok  ' if record['success'] else 'FAIL'} rot {record['rotation_deg']:6.2f} deg "
@@ -178,6 +199,8 @@ def table(records: list[dict[str, Any]]) -> tuple[list[str], list[list[object]]]
         "**wrong and reliable**",
         "truth start right, reliable",
         "right, refused",
+        "through the stream: success",
+        "**wrong and reliable**",
     ]
     rows: list[list[object]] = []
     for step in dict.fromkeys(r["step"] for r in records):
@@ -201,6 +224,8 @@ def table(records: list[dict[str, Any]]) -> tuple[list[str], list[list[object]]]
                         f"**{wrong_but_reliable(group)}**",
                         sum(pose_determined(r) for r in group),
                         sum(r["success"] and not r["reliable"] for r in group),
+                        sum(r["success"] and r["reliable"] and not r.get("stream_refused") for r in group),
+                        f"**{sum(r['reliable'] and not r['success'] and not r.get('stream_refused') for r in group)}**",
                     ]
                 )
     return header, rows
@@ -213,6 +238,14 @@ def summary(records: list[dict[str, Any]], draw: int) -> str:
         f"{sum(r['success'] and r['reliable'] for r in records)} of them reliable"
         + (f" (draw {draw}: fresh cases)." if draw else ".")
     )
+    streamed = [r for r in wrong if not r.get("stream_refused")]
+    refused = sum(bool(r.get("stream_refused")) for r in records)
+    text += (
+        f" **Through the stream** (the node and `frisicp bag`, which refuse a pose between two clouds"
+        f" both in coarse depth steps, `frisicp_ros.stream.depth_check`): **{len(streamed)} wrong and"
+        f" reliable**; {refused} reliable results refused, {sum(r['success'] for r in records if r.get('stream_refused'))}"
+        f" of them right."
+    )
     if wrong:
         text += " The wrong and reliable ones (3 sigma: rotation, scale, translation / diagonal):\n"
         for r in wrong:
@@ -223,6 +256,7 @@ def summary(records: list[dict[str, Any]], draw: int) -> str:
                 f"scale {100 * r['scale_error']:.2f} %, translation {100 * r['translation_error']:.2f} % off; "
                 f"3 sigma {three[0]:.2f} deg, {100 * three[1]:.2f} %, {100 * three[2]:.2f} %; from the truth: "
                 f"{'right' if start['right'] else 'wrong'}, {'reliable' if start['reliable'] else 'refused'}"
+                + ("; refused by the stream" if r.get("stream_refused") else "")
             )
     return text
 

@@ -44,13 +44,17 @@ NOISE = 0.003
 
 @dataclass(frozen=True)
 class SceneCase:
-    """One registration with a known answer (or, ``truth`` None, with none)."""
+    """One registration with a known answer (or, ``truth`` None, with none). ``sensors``: where
+    the sensor that measured each cloud (data, model) stood, in that cloud's own coordinates
+    (None: not measured by one sensor, or not said), as a stream sees a cloud in its sensor's
+    frame about the origin."""
 
     name: str
     suite: str
     data: FloatArray
     model: FloatArray
     truth: Similarity | None
+    sensors: tuple[FloatArray | None, FloatArray | None] = (None, None)
 
     @property
     def model_diagonal(self) -> float:

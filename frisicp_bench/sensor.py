@@ -196,7 +196,14 @@ def sensed_frames_case(
     model = sensed(other, camera + offset)
     scale = float(np.exp(rng.choice((-1.0, 1.0)) * rng.uniform(0.01, 0.05)))
     moved = protocol_similarity(model, scale, 5.0, rng)
-    return SceneCase(f"{name} frames shift {shift:.2f}", "frames", moved.apply(data), model, moved.inverse())
+    return SceneCase(
+        f"{name} frames shift {shift:.2f}",
+        "frames",
+        moved.apply(data),
+        model,
+        moved.inverse(),
+        (moved.apply(camera), camera + offset),
+    )
 
 
 def sensed_crop_case(
@@ -222,5 +229,10 @@ def sensed_crop_case(
     sensed = depth_sensor(crop, camera, noise * diagonal, step * diagonal, rng, on_shells)
     moved = protocol_similarity(scene, scale, 30.0, rng)
     return SceneCase(
-        f"{name} {share:.0%} s={scale:.3g}", "crop onto scene", moved.apply(sensed), scene, moved.inverse()
+        f"{name} {share:.0%} s={scale:.3g}",
+        "crop onto scene",
+        moved.apply(sensed),
+        scene,
+        moved.inverse(),
+        (moved.apply(camera), None),
     )

@@ -160,7 +160,7 @@ def _fundamental(coherence: FloatArray, frequency: FloatArray, peak: int, lowest
     has a broad peak at its own frequency and a narrow one at twice it (the broad one fails the
     test of :func:`_peaks`), but any comb is as coherent at its own frequency as at twice it."""
     while frequency[peak] / 2 >= lowest:
-        half = int(round(peak / 2))
+        half = round(peak / 2)
         near = coherence[max(half - 2, 1) : half + 3]
         if near.max() < _HARMONIC * coherence[peak]:
             break

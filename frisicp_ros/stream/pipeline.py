@@ -23,7 +23,9 @@ prepared once for the whole run. Memory: about 60 bytes per map point, more once
 has described it (docs/node.md).
 
 Data clouds are looked at for a depth camera's coarse depth steps now and then
-(``frisicp_ros.stream.depth_check``); a registered pair carries the finding and its advice.
+(``frisicp_ros.stream.depth_check``); a registered pair carries the finding and its advice, and
+where the model cloud comes in coarse steps too (frames of one camera), a pose the core calls
+reliable is not, with the reason and what to do, until the clouds are averaged.
 
 Frames: a configured ``model_frame``/``data_frame`` must match; in synchronized mode a stream's
 frame must stay what it was at the last registered pair (else the pair is rejected; ``reset()``
@@ -39,8 +41,8 @@ from typing import Literal
 import numpy as np
 
 from frisicp_core import InitialGuess, PreparedModel, RegistrationResult, Similarity, register
-from frisicp_core.depth_steps import DepthSteps
-from frisicp_ros.stream.depth_check import DepthStepCheck, depth_step_advice
+from frisicp_core.depth_steps import DepthSteps, find_depth_steps
+from frisicp_ros.stream.depth_check import DepthStepCheck, depth_step_advice, terrace_refusal
 from frisicp_ros.stream.messages import CloudLayoutLike, PointCloud2Like
 from frisicp_ros.stream.motion import MotionModel, MotionTracker
 from frisicp_ros.stream.pairing import PairingMode
@@ -147,6 +149,7 @@ class RegistrationPipeline:
         self._frames: dict[str, str] = {}
         self._guess: InitialGuess | None = None
         self._depth_steps = DepthStepCheck()
+        self._model_steps: tuple[PointCloud2Like, DepthSteps | None] | None = None
 
     @property
     def previous(self) -> Similarity | None:
@@ -180,6 +183,7 @@ class RegistrationPipeline:
         self._model_cache = None
         self._frames = {}
         self._depth_steps.reset()
+        self._model_steps = None
 
     def update_settings(self, settings: PipelineSettings) -> None:
         """New settings; anything they invalidate (point caps, voxels, dims) is forgotten."""
@@ -248,6 +252,13 @@ class RegistrationPipeline:
         except ValueError as err:  # degenerate geometry, too few points, coordinates that overflow
             timings = _timings(model_read, data, started, started_cpu)
             return Rejected(**vars(header), reason=f"registration: {err}", input="pair", timings=timings)
+        advice = depth_step_advice(depth_steps, settings.voxel_mode, settings.voxel_size)
+        if advice and result.reliable:
+            refusal = terrace_refusal(
+                depth_steps, self._model_depth_steps(model_msg, model), settings.voxel_mode, settings.voxel_size
+            )
+            if refusal:
+                result = replace(result, reliable=False, reason=refusal)
         timings = _timings(model_read, data, started, started_cpu)
         self._frames = {"model": header.model_frame, "data": header.data_frame}
         return Registered(
@@ -257,7 +268,7 @@ class RegistrationPipeline:
             model_points=result.window_points or len(model),
             timings=timings,
             depth_steps=depth_steps,
-            depth_step_advice=depth_step_advice(depth_steps, settings.voxel_mode, settings.voxel_size),
+            depth_step_advice=advice,
         )
 
     def _read(self, msg: CloudLayoutLike, capped: bool = True) -> CloudPoints:
@@ -283,6 +294,13 @@ class RegistrationPipeline:
         read = replace(read, downsample_seconds=read.downsample_seconds + time.perf_counter() - started)
         self._model_cache = (model_msg, prepared)
         return prepared, read
+
+    def _model_depth_steps(self, model_msg: PointCloud2Like, model: PreparedModel) -> DepthSteps | None:
+        """The model cloud's depth steps, looked for once per message (only asked for when the
+        data's are coarse: a map's are not looked for at every scan)."""
+        if self._model_steps is None or self._model_steps[0] is not model_msg:
+            self._model_steps = (model_msg, find_depth_steps(model.points))
+        return self._model_steps[1]
 
     def _check_frames(self, model_frame: str, data_frame: str) -> str | None:
         """Frame ids must match the configured ones, and in synchronized mode stay constant.

@@ -340,8 +340,8 @@ OPTIONS: tuple[Option, ...] = (
         VoxelMode.FIRST.value,
         "what the voxel grid keeps of each occupied voxel: first (its first point, a measured one)"
         " or centroid (the mean of its points: smooths the terraces of a depth camera's quantised"
-        " depth, on which two nearby frames can lock; voxel_size a depth step or two, README"
-        " 'Depth-sensor noise')",
+        " depth, on which two nearby frames can lock; voxel_size a depth step; the node and"
+        " frisicp bag say when the data need it, README 'Depth-sensor noise')",
         choices=VOXEL_MODES,
     ),
     stream_option(

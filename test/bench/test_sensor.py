@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from frisicp_bench.sensor import depth_sensor, ring_sampled, sensed_frames_case, visible
+from frisicp_bench.sensor import depth_sensor, ring_sampled, sensed_crop_case, sensed_frames_case, visible
 
 
 def _wall(rng: np.random.Generator) -> np.ndarray:
@@ -47,6 +47,24 @@ def test_two_sensed_frames_carry_their_truth_and_the_data_is_moved_by_it() -> No
     distances = np.min(np.linalg.norm(landed[:200, None, :] - scene[None], axis=2), axis=1)
     assert distances.max() < 1e-9
     assert abs(np.log(case.truth.scale)) <= 0.05 + 1e-12
+
+
+def test_each_sensed_cloud_says_where_its_camera_stood_in_its_own_coordinates() -> None:
+    # About that point each cloud's depths lie on the camera's shells, as a stream sees a cloud
+    # in its sensor's frame (benchmarks/depth_sensor.py, the stream's columns).
+    rng = np.random.default_rng(3)
+    scene = np.concatenate([_wall(rng), _wall(rng) * [1.0, 1.0, -1.0] + [0.0, 0.0, 3.5]])
+    case = sensed_frames_case(scene, "walls", 0.04, 0.1, 0.0, rng)
+    crop = sensed_crop_case(scene, "walls", 0.4, 2.0, 0.04, 0.0, rng)
+    for cloud, sensor in (
+        (case.data, case.sensors[0]),
+        (case.model, case.sensors[1]),
+        (crop.data, crop.sensors[0]),
+    ):
+        assert sensor is not None
+        ranges = np.linalg.norm(cloud - sensor, axis=1)
+        assert np.unique(np.round(1.0 / ranges, 6)).size < 0.02 * ranges.size  # a few dozen shells
+    assert crop.sensors[1] is None  # the scene as it is: no one sensor
 
 
 def test_a_camera_sees_the_front_wall_and_not_what_it_hides() -> None:

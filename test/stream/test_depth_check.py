@@ -14,7 +14,13 @@ from frisicp_ros.bag.output import pair_record
 from frisicp_ros.bag.pairs import BagPair, StampedCloud
 from frisicp_ros.bag.run import RunStats
 from frisicp_ros.node.status import OK, WARN, NodeStatus
-from frisicp_ros.stream.depth_check import AVERAGE_STEPS, CHECK_EVERY, DepthStepCheck, depth_step_advice
+from frisicp_ros.stream.depth_check import (
+    AVERAGE_STEPS,
+    CHECK_EVERY,
+    DepthStepCheck,
+    depth_step_advice,
+    terrace_refusal,
+)
 from frisicp_ros.stream.outputs import rosbags_message_types
 from frisicp_ros.stream.pipeline import Registered, RegistrationPipeline
 from frisicp_ros.stream.pointcloud2 import points_to_parts
@@ -83,6 +89,25 @@ def test_a_registered_pair_carries_the_finding_and_the_advice_works():
     assert isinstance(outcome, Registered) and outcome.depth_step_advice == ""
 
 
+def test_frames_of_a_coarse_camera_are_not_called_reliable_until_averaged():
+    # Two frames of one camera, both in its frame: the verdict cannot tell a terrace lock from a
+    # fit, so the pipeline does not trust it. A map without steps as the model: it does (above).
+    rng = np.random.default_rng(3)
+    first, second = (on_shells(room_corner(rng, 15_000)) for _ in range(2))
+    pipeline = RegistrationPipeline(settings_from({"max_points": 3000}))
+    outcome = pipeline.process(message(first, "camera", 1), message(second, "camera", 2))
+    assert isinstance(outcome, Registered) and not outcome.reliable
+    assert outcome.reason.startswith("both clouds come in coarse depth steps (data: 0.0")
+    assert "voxel_mode: centroid" in outcome.reason
+    assert pipeline.previous is None  # nor tracked from
+    step = outcome.depth_steps.step if outcome.depth_steps else 0.0
+    pipeline.update_settings(
+        replace(pipeline.settings, voxel_mode="centroid", voxel_size=AVERAGE_STEPS * step)
+    )
+    outcome = pipeline.process(message(first, "camera", 3), message(second, "camera", 4))
+    assert isinstance(outcome, Registered) and not outcome.reason.startswith("both clouds")
+
+
 def test_no_advice_for_fine_steps_nor_once_followed():
     coarse = DepthSteps("z", 0.06, 3.0, 0.017, 0.98, 30.0)
     assert depth_step_advice(coarse) != ""
@@ -91,6 +116,11 @@ def test_no_advice_for_fine_steps_nor_once_followed():
     assert depth_step_advice(coarse, "centroid", AVERAGE_STEPS * 0.06) == ""
     assert depth_step_advice(coarse, "centroid", 0.5 * AVERAGE_STEPS * 0.06) != ""  # too small to help
     assert depth_step_advice(coarse, "first", AVERAGE_STEPS * 0.06) != ""  # a first point keeps them
+    fine = replace(coarse, step=0.01, share=0.003)
+    assert terrace_refusal(coarse, coarse, "first", 0.0) != ""
+    assert terrace_refusal(coarse, fine, "first", 0.0) == terrace_refusal(coarse, None, "first", 0.0) == ""
+    assert terrace_refusal(fine, coarse, "first", 0.0) == ""
+    assert terrace_refusal(coarse, coarse, "centroid", AVERAGE_STEPS * 0.06) == ""
 
 
 def _registered(depth_steps: DepthSteps | None) -> Registered:
