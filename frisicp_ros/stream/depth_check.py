@@ -75,7 +75,9 @@ def depth_step_advice(found: DepthSteps | None, voxel_mode: str = "first", voxel
     )
 
 
-def terrace_refusal(data: DepthSteps | None, model: DepthSteps | None, voxel_mode: str, voxel_size: float) -> str:
+def terrace_refusal(
+    data: DepthSteps | None, model: DepthSteps | None, voxel_mode: str, voxel_size: float
+) -> str:
     """Why a pose between clouds with these depth steps is not reliable, "" when nothing says so:
     both clouds come in coarse steps and are not averaged as :func:`depth_step_advice` advises."""
     advice = depth_step_advice(data, voxel_mode, voxel_size)

@@ -255,7 +255,10 @@ class RegistrationPipeline:
         advice = depth_step_advice(depth_steps, settings.voxel_mode, settings.voxel_size)
         if advice and result.reliable:
             refusal = terrace_refusal(
-                depth_steps, self._model_depth_steps(model_msg, model), settings.voxel_mode, settings.voxel_size
+                depth_steps,
+                self._model_depth_steps(model_msg, model),
+                settings.voxel_mode,
+                settings.voxel_size,
             )
             if refusal:
                 result = replace(result, reliable=False, reason=refusal)
