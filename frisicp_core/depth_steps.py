@@ -33,7 +33,7 @@ away from its origin) are not found: their shells are not planes or spheres of t
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -105,14 +105,21 @@ def find_depth_steps(points: FloatArray, max_points: int = MAX_POINTS) -> DepthS
     and clouds of fewer than :data:`MIN_POINTS` points give None."""
     if points.ndim != 2 or points.shape[1] != 3 or points.shape[0] < MIN_POINTS:
         return None
-    sampled = points[:: max(1, points.shape[0] // max_points)]
-    diagonal = float(np.linalg.norm(np.ptp(points, axis=0)))
-    if not np.isfinite(diagonal) or diagonal <= 0:
+    # In units of a power of two about the largest coordinate (exact): no square overflows or
+    # underflows, whatever the cloud's units; shells and shares do not depend on them.
+    largest = float(np.max(np.abs(points)))
+    if not (np.isfinite(largest) and largest > 0):
         return None
+    unit = float(np.ldexp(1.0, np.frexp(largest)[1] - 1))  # largest / unit in [1, 2)
+    diagonal = float(np.linalg.norm(points.max(axis=0) / unit - points.min(axis=0) / unit))
+    if not diagonal > 0:
+        return None
+    sampled = points[:: max(1, points.shape[0] // max_points)] / unit
     found = [
         steps for depth in DEPTHS if (steps := _shells(depth, _depths(sampled, depth), diagonal)) is not None
     ]
-    return max(found, key=lambda steps: steps.coherence, default=None)
+    best = max(found, key=lambda steps: steps.coherence, default=None)
+    return None if best is None else replace(best, step=best.step * unit, median_depth=best.median_depth * unit)
 
 
 def _depths(points: FloatArray, depth: str) -> FloatArray:
@@ -125,16 +132,19 @@ def _depths(points: FloatArray, depth: str) -> FloatArray:
 
 def _shells(depth: str, depths: FloatArray, diagonal: float) -> DepthSteps | None:
     """The shells of one depth measure (None: too few points in front, or no comb)."""
-    ahead = depths[depths > 0]
+    # A point a billionth of the cloud's size from the sensor or nearer has no depth to speak of.
+    ahead = depths[depths > 1e-9 * diagonal]
     if ahead.size < max(_IN_FRONT * depths.size, MIN_POINTS):
         return None
     inverse = 1.0 / ahead
     low, high = np.percentile(inverse, _CENTRAL)
     inverse = inverse[(inverse >= low) & (inverse <= high)]
     median = float(np.median(ahead))
-    finest, coarsest = (share * diagonal / median**2 for share in (SMALLEST_STEP, LARGEST_STEP))
+    with np.errstate(divide="ignore", over="ignore"):
+        finest, coarsest = (share * diagonal / median**2 for share in (SMALLEST_STEP, LARGEST_STEP))
     span = float(high - low)
-    if not span > MIN_SHELLS * finest:
+    # A sensor all but at the cloud (depths a tiny share of its size) gives spacings past the floats.
+    if not (0.0 < finest < coarsest < np.inf and span > MIN_SHELLS * finest):
         return None
     width = max(finest / _BINS_PER_STEP, span / _MAX_BINS)
     bins = int(span / width) + 1

@@ -119,3 +119,10 @@ def test_what_it_does_not_look_at():
     assert find_depth_steps(-cloud) is None  # behind the sensor along every axis; the range...
     assert find_depth_steps(cloud - np.array([0.0, 0.0, 1.5])) is None  # ...and moved off the sensor's origin
     assert find_depth_steps(np.zeros((1000, 3))) is None  # no extent
+    found = find_depth_steps(cloud)
+    assert found is not None
+    with np.errstate(over="raise", divide="raise", invalid="raise"):  # whatever the units
+        for unit in (1e-300, 1e150, 1e300):
+            scaled = find_depth_steps(cloud * unit)
+            assert scaled is not None and scaled.share == pytest.approx(found.share)
+            assert scaled.step == pytest.approx(found.step * unit)
