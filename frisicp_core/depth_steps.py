@@ -119,7 +119,9 @@ def find_depth_steps(points: FloatArray, max_points: int = MAX_POINTS) -> DepthS
         steps for depth in DEPTHS if (steps := _shells(depth, _depths(sampled, depth), diagonal)) is not None
     ]
     best = max(found, key=lambda steps: steps.coherence, default=None)
-    return None if best is None else replace(best, step=best.step * unit, median_depth=best.median_depth * unit)
+    return (
+        None if best is None else replace(best, step=best.step * unit, median_depth=best.median_depth * unit)
+    )
 
 
 def _depths(points: FloatArray, depth: str) -> FloatArray:
