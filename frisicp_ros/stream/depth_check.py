@@ -14,8 +14,8 @@ why such a pose is not reliable, until the clouds are averaged as advised.
 ``benchmarks/depth_sensor.py`` measures what that refuses (its "through the stream" columns).
 
 The sensor does not change from one cloud to the next, so :class:`DepthStepCheck` looks at the
-first data cloud of each frame and then at every :data:`CHECK_EVERY`-th (about 10 ms on 20,000
-points; once in 10 s at 10 Hz).
+first data cloud of each frame and then at every :data:`CHECK_EVERY`-th (once in 10 s at 10 Hz;
+a look costs milliseconds, benchmarks/depth_steps.py).
 """
 
 from __future__ import annotations
