@@ -28,7 +28,7 @@ from frisicp_ros.stream.pointcloud2 import VoxelMode
 CHECK_EVERY = 100
 # The voxels advised, in depth steps. Frames at 2 % steps (benchmarks/depth_sensor.py --steps 0.02
 # --suite frames): averaged on voxels one step wide (--average 1), 0 of 36 wrong and reliable
-# and 30 right (docs/depth_sensor_averaged.md), where 8 and 15 were without; with the depths
+# and 30 right (docs/depth_sensor_averaged.md), where 7 and 15 were without; with the depths
 # exactly on shells 0 and 28 (--on-shells, docs/depth_sensor_on_shells_averaged.md), where 1
 # and 11 were. Two steps wide left 9 right (docs/depth_sensor_averaged_two_steps.md): too sparse.
 AVERAGE_STEPS = 1
