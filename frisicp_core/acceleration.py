@@ -37,13 +37,16 @@ class AndersonAccelerator:
         self._residuals: list[FloatArray] = []
 
     def encode(self, sim: Similarity) -> FloatArray:
-        return np.concatenate(
-            (
-                [np.log(sim.scale / self.reference.scale)],
-                log_rotation(sim.rotation @ self.reference.rotation.T),
-                (sim.apply(self.centroid) - self._anchor) / self.radius,
+        # A cloud of no extent (radius 0, hostile input) encodes as inf/NaN, which the caller's
+        # finiteness checks reject; numpy need not warn about it on the way.
+        with np.errstate(divide="ignore", invalid="ignore"):
+            return np.concatenate(
+                (
+                    [np.log(sim.scale / self.reference.scale)],
+                    log_rotation(sim.rotation @ self.reference.rotation.T),
+                    (sim.apply(self.centroid) - self._anchor) / self.radius,
+                )
             )
-        )
 
     def decode(self, x: FloatArray) -> Similarity:
         dim = self.centroid.shape[0]

@@ -137,7 +137,8 @@ class Uncertainty:
         c = np.asarray(centre, dtype=np.float64).reshape(-1)
         m, r = c.shape[0], vector_size(c.shape[0])
         low, high = (np.asarray(corner, dtype=np.float64).reshape(-1) for corner in model_bounds)
-        log_scale = max(abs(np.log(answer.scale / bound)) for bound in scale_range) / SIGMAS
+        with np.errstate(divide="ignore"):  # a scale of 0 or inf (hostile input): an infinite prior
+            log_scale = max(abs(np.log(answer.scale / bound)) for bound in scale_range) / SIGMAS
         farthest_corner = float(np.linalg.norm(np.maximum(np.abs(c - low), np.abs(c - high))))
         landing = farthest_corner + max(scale_range) * data_reach
         sigmas = np.concatenate([[log_scale], np.full(r, np.pi / SIGMAS), np.full(m, landing / SIGMAS)])
