@@ -52,7 +52,8 @@ MIN_COHERENCE = 0.3
 MIN_SHELLS = 4.0
 # A step at least this share of the cloud's diagonal is coarse: benchmarks/depth_sensor.py
 # found frames 40 % of a scene wide locking terrace onto terrace at steps of 1.5 % of the
-# scene's diagonal (2.2-2.6 % of a frame's own), none at 1.25 %.
+# scene's diagonal, none at 1.25 %; a step of 1 % of the scene is 1.3-1.7 % of such a frame's
+# own (docs/depth_steps.md), so every locking step is flagged.
 COARSE_SHARE = 0.01
 # A comb's coherence at its own frequency is at least this share of that at twice it (blurred
 # shells: exp(-2 pi^2 sigma^2 / du^2) against its fourth power; see _fundamental).
