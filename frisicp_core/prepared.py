@@ -22,7 +22,9 @@ What it holds, each computed when first needed and kept:
   :mod:`frisicp_core.window` cuts the part of a map around a tracked scan;
 - the thinned levels of the sparse-to-dense pyramid (:meth:`thinned`: the same random subsets a
   fresh preparation would draw, so results do not depend on whether the model was prepared);
-- the shape descriptors of a global search (:mod:`frisicp_core.global_search`), per radius.
+- the shape descriptors of a global search (:mod:`frisicp_core.global_search`), per radius;
+- the depth camera's shells its points lie on about the origin, if any
+  (:func:`frisicp_core.depth_steps.find_depth_steps`: a model cloud in its sensor's frame).
 
 Memory, beyond the points themselves (24 bytes per 3-D point): the grid index 8 bytes per point;
 a pykdtree 4-8; the normals 24 (allocated with the first normal asked for); the descriptors of a
@@ -46,6 +48,7 @@ from typing import Any, TypeVar
 import numpy as np
 from numpy.typing import ArrayLike
 
+from .depth_steps import DepthSteps, find_depth_steps
 from .features import Descriptors, describe
 from .grid_index import GridIndex
 from .kdtree import NearestNeighbors
@@ -127,6 +130,12 @@ class PreparedModel:
     def spread(self) -> float:
         """:func:`frisicp_core.points.spread` of the points (the verdict's one-scene check)."""
         return self._cache.value(("spread",), lambda: spread(self.points))
+
+    @property
+    def depth_steps(self) -> DepthSteps | None:
+        """The shells a depth camera at the origin put the points on (None: none found), looked
+        for once (:func:`frisicp_core.depth_steps.find_depth_steps`)."""
+        return self._cache.value(("depth_steps",), lambda: find_depth_steps(self.points))
 
     def tree(self, backend: str = "auto") -> NearestNeighbors:
         """The KD-tree over the points (built on first use, one per backend)."""

@@ -46,7 +46,7 @@ class DepthStepCheck:
         """The finding for a data cloud of ``points`` in ``frame``: looked at anew when the frame
         changed or :data:`CHECK_EVERY` clouds after the last look, else the last one's."""
         if frame != self._frame or self._since_check >= CHECK_EVERY:
-            self.found = find_depth_steps(points) if points.ndim == 2 and points.shape[1] == 3 else None
+            self.found = find_depth_steps(points)  # None for 2-D clouds
             self._frame = frame
             self._since_check = 0
         self._since_check += 1

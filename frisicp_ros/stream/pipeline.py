@@ -41,7 +41,7 @@ from typing import Literal
 import numpy as np
 
 from frisicp_core import InitialGuess, PreparedModel, RegistrationResult, Similarity, register
-from frisicp_core.depth_steps import DepthSteps, find_depth_steps
+from frisicp_core.depth_steps import DepthSteps
 from frisicp_ros.stream.depth_check import DepthStepCheck, depth_step_advice, terrace_refusal
 from frisicp_ros.stream.messages import CloudLayoutLike, PointCloud2Like
 from frisicp_ros.stream.motion import MotionModel, MotionTracker
@@ -149,7 +149,6 @@ class RegistrationPipeline:
         self._frames: dict[str, str] = {}
         self._guess: InitialGuess | None = None
         self._depth_steps = DepthStepCheck()
-        self._model_steps: tuple[PointCloud2Like, DepthSteps | None] | None = None
 
     @property
     def previous(self) -> Similarity | None:
@@ -183,7 +182,6 @@ class RegistrationPipeline:
         self._model_cache = None
         self._frames = {}
         self._depth_steps.reset()
-        self._model_steps = None
 
     def update_settings(self, settings: PipelineSettings) -> None:
         """New settings; anything they invalidate (point caps, voxels, dims) is forgotten."""
@@ -256,7 +254,7 @@ class RegistrationPipeline:
         if advice and result.reliable:
             refusal = terrace_refusal(
                 depth_steps,
-                self._model_depth_steps(model_msg, model),
+                model.depth_steps,  # looked for once per model message, and only here
                 settings.voxel_mode,
                 settings.voxel_size,
             )
@@ -297,13 +295,6 @@ class RegistrationPipeline:
         read = replace(read, downsample_seconds=read.downsample_seconds + time.perf_counter() - started)
         self._model_cache = (model_msg, prepared)
         return prepared, read
-
-    def _model_depth_steps(self, model_msg: PointCloud2Like, model: PreparedModel) -> DepthSteps | None:
-        """The model cloud's depth steps, looked for once per message (only asked for when the
-        data's are coarse: a map's are not looked for at every scan)."""
-        if self._model_steps is None or self._model_steps[0] is not model_msg:
-            self._model_steps = (model_msg, find_depth_steps(model.points))
-        return self._model_steps[1]
 
     def _check_frames(self, model_frame: str, data_frame: str) -> str | None:
         """Frame ids must match the configured ones, and in synchronized mode stay constant.

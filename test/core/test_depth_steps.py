@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from support.data import shared_file
 
-from frisicp_core import read_points
+from frisicp_core import PreparedModel, read_points
 from frisicp_core.depth_steps import COARSE_SHARE, find_depth_steps
 
 # A camera at the origin looking along +z (an optical frame) into a room corner 2-4 m away.
@@ -58,6 +58,17 @@ def test_a_depth_cameras_shells_are_found_with_their_spacing(depth, noise):
     assert found.coarse
     assert found.coherence > (0.99 if noise == 0 else 0.7)  # exp(-2 pi^2 0.1^2) = 0.82
     assert "depth steps of 0.0" in str(found)
+
+
+def test_a_prepared_model_looks_for_its_shells_once():
+    rng = np.random.default_rng(7)
+    cloud = quantised(room_corner(rng), 0.06, "z", rng)
+    model = PreparedModel(cloud)
+    found = model.depth_steps
+    assert found is not None and found.coarse and found.depth == "z"
+    assert found.step == pytest.approx(expected_step(cloud, 0.06, "z"), rel=0.02)
+    assert model.depth_steps is found  # kept, not looked for again
+    assert PreparedModel(room_corner(rng)).depth_steps is None
 
 
 def test_fine_shells_are_found_but_not_coarse():
