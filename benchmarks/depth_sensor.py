@@ -22,13 +22,14 @@ noise model. Each case is also registered from the truth (warm, before the cold 
 tolerance. Scored like trustworthy.py: right = rotation < 1 deg, scale < 1 %, translation < 0.5 %
 of the model's diagonal; what must be 0 is **wrong and reliable**.
 
-*Through the stream*: the node and ``frisicp bag`` see each cloud in its sensor's frame and do not
-trust a pose between two clouds that both come in coarse depth steps
-(``frisicp_ros.stream.depth_check.terrace_refusal``; the frames here, not the crops, whose model
-is the scene as it is). Each case records the steps ``frisicp_core.find_depth_steps`` finds in
-each cloud about its camera, and whether the stream would refuse a reliable result; the last two
-columns count what a stream user gets (averaged clouds, ``--average``, are as the stream's advice
-asks, and are not refused).
+The clouds are handed to ``register`` where the case puts them (the data moved by the truth's
+inverse, the model in the scene's coordinates), where the core sees no depth steps about their
+origins. ``--sensor-frames`` hands each cloud in its own camera's frame instead, as a driver
+publishes it (the truth moved with them, :meth:`frisicp_bench.scenes.SceneCase.in_sensor_frames`):
+there the core finds two frames' coarse steps and registers their averages over a step's voxels
+(``frisicp_core.terraces``; after the cap, as in the node and ``frisicp bag`` by default). Each
+case records the steps ``frisicp_core.find_depth_steps`` finds in each cloud about its camera, and
+whether the core averaged them (the "averaged by the core" column).
 
 ``--occlusion``: each camera keeps only the points it sees (:func:`frisicp_bench.sensor.visible`,
 a z-buffer), so two frames also differ in what each one's foreground hides.
@@ -48,11 +49,13 @@ ranges are not quantised in disparity).
 ``--average F``: what a user can do about coarse steps: both clouds averaged on a voxel grid
 (:func:`frisicp_core.voxel_centroids`, the mean of each voxel's points, as the node's and
 ``frisicp bag``'s ``voxel_mode: centroid`` does) of edge F times the depth step at the median
-range, in each cloud's own units (the sensor's step, known in its frame), before the cap.
+range, in each cloud's own units (the sensor's step, known in its frame), before the cap. The
+stream then tells the core not to average them again (``frisicp_ros.stream.depth_check``), as
+the scene frames here do; with ``--sensor-frames`` the core averages the averages again.
 
 Usage: python benchmarks/depth_sensor.py [--jobs 2] [--data DIR] [--steps 0.005,0.01,0.02]
                                          [--suite frames] [--occlusion [--flying]] [--on-shells]
-                                         [--rings N]
+                                         [--rings N] [--sensor-frames]
                                          [--average F] [--draw N] [--out docs/depth_sensor.md]
        python benchmarks/depth_sensor.py --quick   # one frame pair and one crop of rs1 -> build/
 Exits 0 without measuring when the data folder is absent, saying so.
@@ -81,7 +84,6 @@ from frisicp_bench.scenes import object_cloud
 from frisicp_bench.sensor import ring_sampled, sensed_crop_case, sensed_frames_case, visible
 from frisicp_core import downsample, register, voxel_centroids
 from frisicp_core.depth_steps import find_depth_steps
-from frisicp_ros.stream.depth_check import terrace_refusal
 
 TITLE = "Depth-sensor noise: frames and crops with errors along the rays and quantised depth"
 SCENES = ("rs1.pcd", "bun_zipper.ply", "dragon1.xyz", "chef.pcd", "dragon2.xyz", "bunny_part2.xyz")
@@ -104,10 +106,12 @@ def score(
     rings: int = 0,
     flying: bool = False,
     on_shells: bool = False,
+    sensor_frames: bool = False,
 ) -> dict[str, Any]:
     """Build, register (cold and from the truth) and score one case, deterministic in its key and
     ``draw``: (suite, scene, depth step, shift or share, repeat); ``occlusion``, ``flying``,
-    ``on_shells``, ``rings`` and ``average`` as the options of the same names (module doc)."""
+    ``on_shells``, ``rings``, ``sensor_frames`` and ``average`` as the options of the same names
+    (module doc)."""
     suite, scene_name, step, size, repeat = key
     salt = f"{suite}/{scene_name}/{step}/{size}/{repeat}" + (f"/draw {draw}" if draw else "")
     rng = np.random.default_rng(zlib.crc32(salt.encode()))
@@ -124,6 +128,8 @@ def score(
         case = sensed_crop_case(
             scene, name, size, float(rng.choice(PAPER_SCALES)), step, NOISE, rng, sight, on_shells
         )
+    if sensor_frames:
+        case = case.in_sensor_frames()
     assert case.truth is not None
     data, model = case.data, case.model
     if average > 0:
@@ -144,8 +150,6 @@ def score(
         None if sensor is None else find_depth_steps(cloud - sensor)
         for cloud, sensor in zip((data, model), case.sensors, strict=True)
     ]
-    # Averaged (--average), the clouds are as the advice asks: the stream does not refuse them.
-    stream_refusal = "" if average > 0 else terrace_refusal(found[0], found[1], "first", 0.0)
     return case_record(
         errors,
         result,
@@ -156,7 +160,7 @@ def score(
         reason=result.reason,
         data_depth_step=None if found[0] is None else found[0].share,
         model_depth_step=None if found[1] is None else found[1].share,
-        stream_refused=bool(result.reliable and stream_refusal),
+        averaged_by_core=result.depth_averaged is not None,
         three_sigma=None
         if sigmas is None
         else [3 * sigmas.rotation_deg, 3 * sigmas.scale, 3 * sigmas.translation / case.model_diagonal],
@@ -180,7 +184,7 @@ def percent(step: float) -> str:
 def line(record: dict[str, Any]) -> str:
     verdict = "reliable" if record["reliable"] else record["reason"][:50]
     flag = "  WRONG AND RELIABLE" if record["reliable"] and not record["success"] else ""
-    flag += " (refused by the stream)" if record["stream_refused"] else ""
+    flag += " (averaged by the core)" if record["averaged_by_core"] else ""
     return (
         f"step {percent(record['step'])} % {record['suite']:15s} {record['case']:28s} "
         f"{'ok  ' if record['success'] else 'FAIL'} rot {record['rotation_deg']:6.2f} deg "
@@ -199,8 +203,7 @@ def table(records: list[dict[str, Any]]) -> tuple[list[str], list[list[object]]]
         "**wrong and reliable**",
         "truth start right, reliable",
         "right, refused",
-        "through the stream: success",
-        "**wrong and reliable**",
+        "averaged by the core",
     ]
     rows: list[list[object]] = []
     for step in dict.fromkeys(r["step"] for r in records):
@@ -224,8 +227,7 @@ def table(records: list[dict[str, Any]]) -> tuple[list[str], list[list[object]]]
                         f"**{wrong_but_reliable(group)}**",
                         sum(pose_determined(r) for r in group),
                         sum(r["success"] and not r["reliable"] for r in group),
-                        sum(r["success"] and r["reliable"] and not r.get("stream_refused") for r in group),
-                        f"**{sum(r['reliable'] and not r['success'] and not r.get('stream_refused') for r in group)}**",
+                        sum(r["averaged_by_core"] for r in group),
                     ]
                 )
     return header, rows
@@ -238,13 +240,12 @@ def summary(records: list[dict[str, Any]], draw: int) -> str:
         f"{sum(r['success'] and r['reliable'] for r in records)} of them reliable"
         + (f" (draw {draw}: fresh cases)." if draw else ".")
     )
-    streamed = [r for r in wrong if not r.get("stream_refused")]
-    refused = sum(bool(r.get("stream_refused")) for r in records)
+    averaged = [r for r in records if r["averaged_by_core"]]
     text += (
-        f" **Through the stream** (the node and `frisicp bag`, which refuse a pose between two clouds"
-        f" both in coarse depth steps, `frisicp_ros.stream.depth_check`): **{len(streamed)} wrong and"
-        f" reliable**; {refused} reliable results refused, {sum(r['success'] for r in records if r.get('stream_refused'))}"
-        f" of them right."
+        f" The core averaged both clouds over their depth steps (`frisicp_core.terraces`) in"
+        f" {len(averaged)} cases: {sum(r['success'] for r in averaged)} right,"
+        f" {sum(r['success'] and r['reliable'] for r in averaged)} of them reliable,"
+        f" {sum(r['reliable'] and not r['success'] for r in averaged)} wrong and reliable."
     )
     if wrong:
         text += " The wrong and reliable ones (3 sigma: rotation, scale, translation / diagonal):\n"
@@ -256,7 +257,7 @@ def summary(records: list[dict[str, Any]], draw: int) -> str:
                 f"scale {100 * r['scale_error']:.2f} %, translation {100 * r['translation_error']:.2f} % off; "
                 f"3 sigma {three[0]:.2f} deg, {100 * three[1]:.2f} %, {100 * three[2]:.2f} %; from the truth: "
                 f"{'right' if start['right'] else 'wrong'}, {'reliable' if start['reliable'] else 'refused'}"
-                + ("; refused by the stream" if r.get("stream_refused") else "")
+                + ("; averaged by the core" if r["averaged_by_core"] else "")
             )
     return text
 
@@ -285,6 +286,11 @@ def main(argv: list[str] | None = None) -> int:
         help="average both clouds on voxels of F depth steps first (default 0: off)",
     )
     command.add_argument("--occlusion", action="store_true", help="each camera keeps only what it sees")
+    command.add_argument(
+        "--sensor-frames",
+        action="store_true",
+        help="each cloud in its camera's frame, as a driver publishes it",
+    )
     command.add_argument(
         "--flying", action="store_true", help="with --occlusion: flying pixels at depth edges"
     )
@@ -333,6 +339,7 @@ def main(argv: list[str] | None = None) -> int:
         rings=args.rings,
         flying=args.flying,
         on_shells=args.on_shells,
+        sensor_frames=args.sensor_frames,
     )
     records = script.map_cases(args, work, cases, line)
     if records is None:
@@ -343,6 +350,7 @@ def main(argv: list[str] | None = None) -> int:
         + (", with flying pixels at depth edges" if args.flying else "")
         + (", depths exactly on the shells" if args.on_shells else "")
         + (f", in {args.rings} lidar rings" if args.rings else "")
+        + (", each cloud in its camera's frame" if args.sensor_frames else "")
         + (f", averaged on voxels of {args.average:g} steps" if args.average else "")
     )
     write_report(

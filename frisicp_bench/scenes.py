@@ -23,7 +23,7 @@ size) with the scale and the rotation bound chosen per suite.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -59,6 +59,29 @@ class SceneCase:
     @property
     def model_diagonal(self) -> float:
         return model_size(self.model)
+
+    def in_sensor_frames(self) -> SceneCase:
+        """The case with each measured cloud moved so that its sensor stands at the origin, as a
+        camera driver publishes it (the truth moved with them; clouds without a sensor as they
+        are): where :mod:`frisicp_core.terraces` can see a depth camera's shells."""
+        data_sensor, model_sensor = (np.zeros(3) if at is None else at for at in self.sensors)
+        truth = (
+            None
+            if self.truth is None
+            else Similarity(1.0, np.eye(3), -model_sensor)
+            @ self.truth
+            @ Similarity(1.0, np.eye(3), data_sensor)
+        )
+        return replace(
+            self,
+            data=self.data - data_sensor,
+            model=self.model - model_sensor,
+            truth=truth,
+            sensors=(
+                None if self.sensors[0] is None else np.zeros(3),
+                None if self.sensors[1] is None else np.zeros(3),
+            ),
+        )
 
 
 def real_cloud(data_dir: Path, name: str) -> FloatArray:

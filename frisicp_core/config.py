@@ -143,8 +143,8 @@ class RegistrationConfig:
     ``criteria``. Ours, on by default: ``overlap`` (estimated per direction), ``symmetric``
     (scale rule), ``initialization`` (hypothesis search), ``acceleration``. Also ``initial``
     (warm start: tracking, iterated from there), ``guess`` (a rough pose with its uncertainty: searched
-    around), ``max_distance`` (gating), ``drop_nonfinite``, ``seed`` (the random
-    down-sampling), ``backend`` (KD-tree library), ``budget_seconds``.
+    around), ``max_distance`` (gating), ``average_depth_steps``, ``drop_nonfinite``, ``seed`` (the
+    random down-sampling), ``backend`` (KD-tree library), ``budget_seconds``.
 
     ``overlap``: None (default) estimates, in each direction separately and at every iteration,
     which share of the nearest-neighbour pairs belongs to the overlap (trimmed ICP's criterion,
@@ -164,6 +164,11 @@ class RegistrationConfig:
     converges somewhere else and the finest level starts a few iterations away; with dense
     targets every level estimates the same optimum and the finest needs one or two. The
     coarsest level, where the initial hypotheses are screened, is thinned on both sides.
+    ``average_depth_steps``: where both clouds come in a depth camera's coarse depth steps about
+    their own origins (each in its camera's frame), register their averages over voxels a step
+    wide instead (:mod:`frisicp_core.terraces`): two such frames lock terrace onto terrace, a
+    wrong pose that looks right. Costs a look at the data's depths (milliseconds) where the model
+    shows steps or is an array; the result's ``depth_averaged`` says what was done.
     ``budget_seconds``: wall-clock time one ``register`` call may take (None, the default:
     unbounded; the node and ``frisicp bag`` set 5 s). Past it the iterations stop and the result
     is returned unreliable, reason "budget exceeded" (see :mod:`frisicp_core.budget`); the cold
@@ -185,6 +190,7 @@ class RegistrationConfig:
     probe: bool = True
     polish: bool = True
     acceleration: bool = True
+    average_depth_steps: bool = True
     drop_nonfinite: bool = False
     seed: int = 0
     backend: str = "auto"
@@ -233,6 +239,7 @@ class RegistrationConfig:
             "acceleration": False,
             "probe": False,
             "polish": False,
+            "average_depth_steps": False,
         }
         settings.update(overrides)
         return cls(**settings)  # type: ignore[arg-type]

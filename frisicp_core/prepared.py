@@ -24,7 +24,9 @@ What it holds, each computed when first needed and kept:
   fresh preparation would draw, so results do not depend on whether the model was prepared);
 - the shape descriptors of a global search (:mod:`frisicp_core.global_search`), per radius;
 - the depth camera's shells its points lie on about the origin, if any
-  (:func:`frisicp_core.depth_steps.find_depth_steps`: a model cloud in its sensor's frame).
+  (:func:`frisicp_core.depth_steps.find_depth_steps`: a model cloud in its sensor's frame), and
+  its average over voxels a step wide, prepared, where a registration averages both clouds
+  (:mod:`frisicp_core.terraces`).
 
 Memory, beyond the points themselves (24 bytes per 3-D point): the grid index 8 bytes per point;
 a pykdtree 4-8; the normals 24 (allocated with the first normal asked for); the descriptors of a
@@ -57,6 +59,7 @@ from .refine import ModelNormals
 from .sampling import downsample, in_spatial_order
 from .similarity import FloatArray
 from .units import magnitude_exponent
+from .voxel import voxel_centroids
 
 # Thinned-level draws remembered (see thinned): a few per data size and seed in use.
 _THINNED_KEPT = 32
@@ -136,6 +139,17 @@ class PreparedModel:
         """The shells a depth camera at the origin put the points on (None: none found), looked
         for once (:func:`frisicp_core.depth_steps.find_depth_steps`)."""
         return self._cache.value(("depth_steps",), lambda: find_depth_steps(self.points))
+
+    def averaged(self, edge: float) -> PreparedModel:
+        """The model averaged over voxels of ``edge`` (:func:`frisicp_core.voxel_centroids`),
+        prepared, kept per edge (:mod:`frisicp_core.terraces`); ``ValueError`` when the average
+        is no usable point set."""
+        return self._cache.value(
+            ("averaged", edge),
+            lambda: PreparedModel.of(
+                as_point_set(voxel_centroids(self.points, edge), "model averaged over its depth steps")
+            ),
+        )
 
     def tree(self, backend: str = "auto") -> NearestNeighbors:
         """The KD-tree over the points (built on first use, one per backend)."""

@@ -67,6 +67,7 @@ from .result import IterationRecord, LevelReport, RegistrationResult
 from .sampling import downsample, in_spatial_order, level_sizes
 from .similarity import FloatArray, Similarity
 from .solver import ACCELERATE_FROM, ACCELERATE_FROM_TRACKING, Solver, compare_finalists
+from .terraces import average_terraces
 from .threads import one_thread
 from .uncertainty import Uncertainty
 from .units import Units, magnitude_exponent
@@ -134,6 +135,11 @@ def register(
     start, around the guess for a guess), and a reliable answer from there is refined in a
     window around itself, so that the two are compared, and the track goes on, alike.
 
+    Depth cameras: two clouds that both come in a depth camera's coarse depth steps, each in its
+    camera's frame, are registered as their averages over voxels a step wide
+    (:mod:`frisicp_core.terraces`; ``config.average_depth_steps``), said by the result's
+    ``depth_averaged``: frames from nearby viewpoints otherwise lock terrace onto terrace.
+
     OpenMP and BLAS run one thread inside the call (:mod:`frisicp_core.threads`).
     """
     config = config or RegistrationConfig()
@@ -148,12 +154,20 @@ def register(
         units = Units.of(data_set, model_set)
         data_set, model_set = units.scaled(data_set, model_set)
         prepared = PreparedModel.of(model_set)
+    # Prepared either way, in the same units and order: the same steps and averages (and, for a
+    # PreparedModel, its average kept for the next call).
+    averaged = average_terraces(data_set, prepared) if config.average_depth_steps else None
+    if averaged is not None:
+        data_set, prepared = averaged.data, averaged.model
     # A pose far off (a warm start from clouds in other units) throws points past float64: their
     # distances are inf (or NaN: inf times a scale that squared to 0), the pose's merit is not
     # finite and it is dropped, or the result is unreliable. numpy's warnings on the way would
     # only be noise on a node's stderr.
     with np.errstate(over="ignore", invalid="ignore"), one_thread():
-        return _tracked(data_set, prepared, config, units, previous if config.initial is not None else None)
+        result = _tracked(data_set, prepared, config, units, previous if config.initial is not None else None)
+    if averaged is None:
+        return result
+    return replace(result, depth_averaged=(averaged.edges[0] * units.data, averaged.edges[1] * units.model))
 
 
 def _tracked(

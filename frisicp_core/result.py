@@ -60,6 +60,10 @@ class RegistrationResult:
     ``window_points``: the number of model points in the window around the predicted pose that
     the data were registered against (:mod:`frisicp_core.window`), None when the whole model was
     used; the overlaps, the RMS and the verdict are then the window's.
+    ``depth_averaged``: the voxel edges (data units, model units) over which both clouds were
+    averaged before they were registered, their depths coming in a depth camera's coarse steps
+    (:mod:`frisicp_core.terraces`); None when they were registered as given. The levels' point
+    counts and the overlaps are then the averages'.
     """
 
     similarity: Similarity
@@ -82,6 +86,7 @@ class RegistrationResult:
     fit: Fit | None = None
     retried: str = ""
     window_points: int | None = None
+    depth_averaged: tuple[float, float] | None = None
 
     @property
     def covariance(self) -> FloatArray:

@@ -40,7 +40,9 @@ def pair_record(pair: BagPair, outcome: PairOutcome) -> dict[str, object]:
     ``ok`` is true only for a pose to use: registered and ``reliable``. Otherwise ``reason`` says
     why: a rejected pair (also in ``rejection``, with ``rejected_input``) or an implausible result
     (its numbers are still given, for diagnosis). ``data_depth_steps``, only where found: the
-    data clouds' coarse depth steps (``frisicp_ros.stream.depth_check``).
+    data clouds' coarse depth steps (``frisicp_ros.stream.depth_check``); ``depth_averaged``
+    (from :func:`result_summary`), only where done: the voxel edges [data, model] both clouds were
+    averaged over (``frisicp_core.terraces``).
     """
     record: dict[str, object] = {
         "pair": pair.index,

@@ -259,6 +259,11 @@ class NodeStatus:
             "last converged": str(result.converged),
             "last stamp (ns)": str(outcome.stamp_ns),
             "warm started": str(outcome.warm_started),
+            "last depth averaged (data, model voxels)": (
+                "no"
+                if result.depth_averaged is None
+                else ", ".join(f"{e:.3g}" for e in result.depth_averaged)
+            ),
             **_uncertainty_values(outcome),
         }
 

@@ -1,17 +1,21 @@
-"""Whether a data stream's clouds come in coarse depth steps, what to do, and when not to trust a pose.
+"""Whether a data stream's clouds come in coarse depth steps, what is done about it, what to set.
 
 A data cloud arrives in its sensor's frame, so its depth is the range from the frame's origin or
 the distance along one of its axes: ``frisicp_core.depth_steps`` finds the shells a depth camera
 quantises it into. Steps of a percent or more of the cloud's size let two clouds from nearby
 viewpoints lock terrace onto terrace, a wrong pose the verdict cannot see (README, "Depth-sensor
-noise"); averaging each cloud over voxels a step wide (``voxel_mode: centroid``) smooths them out
-(:data:`AVERAGE_STEPS`), after which the advice is not given again.
+noise"); averaging each cloud over voxels a step wide smooths them out.
 
-Where the model cloud comes in coarse steps too (frames of one camera registered onto each other,
-each in its sensor's frame), the verdict cannot be trusted: the halves that size the uncertainty
-share the terraces, and a locked pose fits as well as a right one. :func:`terrace_refusal` says
-why such a pose is not reliable, until the clouds are averaged as advised.
-``benchmarks/depth_sensor.py`` measures what that refuses (its "through the stream" columns).
+The core does that by itself where both clouds come in coarse steps (``average_depth_steps``, on
+by default; :mod:`frisicp_core.terraces`), on the clouds it is given: the data already capped to
+``max_points``. Averaged in the reader instead (``voxel_mode: centroid`` with ``voxel_size`` at
+least a step: :func:`depth_step_advice` says so), before the cap, a voxel holds more points:
+``benchmarks/depth_sensor.py``'s frame pairs at steps of 1 % came out 29 of 36 right and reliable
+so (``--average 1``, docs/depth_sensor_averaged.md) against 26 averaged by the core after the cap
+(``--sensor-frames``, docs/depth_sensor_sensor_frames.md), none wrong and reliable either way.
+Clouds the settings average already are not averaged again by the core
+(:func:`averaged_by_settings`): both averages, one over the other, left 26
+(``--sensor-frames --average 1``, docs/depth_sensor_sensor_frames_averaged.md).
 
 The sensor does not change from one cloud to the next, so :class:`DepthStepCheck` looks at the
 first data cloud of each frame and then at every :data:`CHECK_EVERY`-th (once in 10 s at 10 Hz;
@@ -23,15 +27,12 @@ from __future__ import annotations
 import numpy as np
 
 from frisicp_core.depth_steps import DepthSteps, find_depth_steps
+from frisicp_core.terraces import AVERAGE_STEPS
 from frisicp_ros.stream.pointcloud2 import VoxelMode
 
+__all__ = ["AVERAGE_STEPS", "CHECK_EVERY", "DepthStepCheck", "averaged_by_settings", "depth_step_advice"]
+
 CHECK_EVERY = 100
-# The voxels advised, in depth steps. Frames at 2 % steps (benchmarks/depth_sensor.py --steps 0.02
-# --suite frames): averaged on voxels one step wide (--average 1), 0 of 36 wrong and reliable
-# and 30 right (docs/depth_sensor_averaged.md), where 7 and 15 were without; with the depths
-# exactly on shells 0 and 28 (--on-shells, docs/depth_sensor_on_shells_averaged.md), where 1
-# and 11 were. Two steps wide left 9 right (docs/depth_sensor_averaged_two_steps.md): too sparse.
-AVERAGE_STEPS = 1
 
 
 class DepthStepCheck:
@@ -59,34 +60,27 @@ class DepthStepCheck:
         self._since_check = 0
 
 
-def depth_step_advice(found: DepthSteps | None, voxel_mode: str = "first", voxel_size: float = 0.0) -> str:
-    """What a user should hear about ``found`` ("" when nothing: no shells, fine ones, or the
-    clouds are averaged as advised already: ``voxel_mode`` centroid on voxels at least
-    :data:`AVERAGE_STEPS` steps wide, whose centroids can still lie on shells where a voxel
-    meets one shell only)."""
-    if found is None or not found.coarse:
-        return ""
-    if voxel_mode == VoxelMode.CENTROID.value and voxel_size >= AVERAGE_STEPS * found.step:
-        return ""
+def averaged_by_settings(found: DepthSteps | None, voxel_mode: str, voxel_size: float) -> bool:
+    """Whether the stream's voxel settings average the clouds over ``found``'s coarse steps
+    already: ``voxel_mode`` centroid on voxels at least :data:`AVERAGE_STEPS` steps wide."""
     return (
-        f"data clouds come in {found}: clouds from nearby viewpoints can register terrace onto"
-        f" terrace, a pose off by degrees that looks reliable (README, Depth-sensor noise); set"
-        f" voxel_mode: centroid with voxel_size >= {AVERAGE_STEPS * found.step:.3g} to average them out"
+        found is not None
+        and found.coarse
+        and voxel_mode == VoxelMode.CENTROID.value
+        and voxel_size >= AVERAGE_STEPS * found.step
     )
 
 
-def terrace_refusal(
-    data: DepthSteps | None, model: DepthSteps | None, voxel_mode: str, voxel_size: float
-) -> str:
-    """Why a pose between clouds with these depth steps is not reliable, "" when nothing says so:
-    both clouds come in coarse steps and are not averaged as :func:`depth_step_advice` advises."""
-    advice = depth_step_advice(data, voxel_mode, voxel_size)
-    if not advice or model is None or not model.coarse:
+def depth_step_advice(found: DepthSteps | None, voxel_mode: str = "first", voxel_size: float = 0.0) -> str:
+    """What a user should hear about ``found`` ("" when nothing: no shells, fine ones, or the
+    settings average the clouds already, :func:`averaged_by_settings`)."""
+    if found is None or not found.coarse or averaged_by_settings(found, voxel_mode, voxel_size):
         return ""
-    assert data is not None
+    edge = f"{AVERAGE_STEPS * found.step:.3g}"
     return (
-        f"both clouds come in coarse depth steps (data: {data.step:.3g} at the median {data.depth}"
-        f" {data.median_depth:.3g}; model: {model.step:.3g} at {model.median_depth:.3g}): nearby"
-        f" views can register terrace onto terrace, which the verdict cannot tell from a fit; set"
-        f" voxel_mode: centroid with voxel_size >= {AVERAGE_STEPS * data.step:.3g} to average them out"
+        f"data clouds come in {found}: clouds from nearby viewpoints can register terrace onto"
+        f" terrace, a pose off by degrees that looks reliable (README, Depth-sensor noise), so"
+        f" where the model comes in coarse steps too, both are registered as their averages over"
+        f" voxels a step wide; set voxel_mode: centroid with voxel_size >= {edge} to average them"
+        f" before the max_points cap instead (more points to each voxel)"
     )

@@ -273,6 +273,8 @@ def result_summary(result: RegistrationResult) -> dict[str, object]:
     """The result as JSON-ready values (``frisicp register --json`` and the bag mode's lines).
 
     ``reliable`` False (with ``reason``) marks a result that failed the plausibility checks.
+    ``depth_averaged``, only where done: the voxel edges [data, model] both clouds were averaged
+    over (``frisicp_core.terraces``).
     """
     sim = result.similarity
     summary: dict[str, object] = {
@@ -293,6 +295,8 @@ def result_summary(result: RegistrationResult) -> dict[str, object]:
     }
     if sim.dim == 3:
         summary["quaternion_xyzw"] = sim.quaternion().tolist()
+    if result.depth_averaged is not None:  # voxel edges [data, model]: frisicp_core.terraces
+        summary["depth_averaged"] = list(result.depth_averaged)
     return summary
 
 

@@ -42,7 +42,7 @@ import numpy as np
 
 from frisicp_core import InitialGuess, PreparedModel, RegistrationResult, Similarity, register
 from frisicp_core.depth_steps import DepthSteps
-from frisicp_ros.stream.depth_check import DepthStepCheck, depth_step_advice, terrace_refusal
+from frisicp_ros.stream.depth_check import DepthStepCheck, averaged_by_settings, depth_step_advice
 from frisicp_ros.stream.messages import CloudLayoutLike, PointCloud2Like
 from frisicp_ros.stream.motion import MotionModel, MotionTracker
 from frisicp_ros.stream.pairing import PairingMode
@@ -95,7 +95,8 @@ class Registered(PairHeader):
     ``reliable`` False: the result failed the plausibility checks (``reason`` says which); it is
     reported but must not be published or used as a pose. ``depth_steps``: the shells the data
     stream's depth was last found in (``frisicp_ros.stream.depth_check``; None: none), and
-    ``depth_step_advice`` what to do about them ("" when nothing).
+    ``depth_step_advice`` what to do about them ("" when nothing); where the model came in coarse
+    steps too, the core registered both clouds' averages (``result.depth_averaged``).
     """
 
     result: RegistrationResult
@@ -234,11 +235,19 @@ class RegistrationPipeline:
         except CloudError as err:
             return Rejected(**vars(header), reason=f"data cloud: {err}", input="data")
         depth_steps = self._depth_steps.look(data.points, header.data_frame)
+        advice = depth_step_advice(depth_steps, settings.voxel_mode, settings.voxel_size)
         # A pending guess replaces the warm start for this one registration (used up even when the
         # core refuses the pair: a guess is for the next registration, not for a later one).
         guess, self._guess = self._guess, None
         initial = None if guess is not None else self.warm_start_for(header.stamp_ns)
-        config = replace(settings.registration, initial=initial, guess=guess)
+        config = replace(
+            settings.registration,
+            initial=initial,
+            guess=guess,
+            # Averaged by the settings already: not again (frisicp_ros.stream.depth_check).
+            average_depth_steps=settings.registration.average_depth_steps
+            and not averaged_by_settings(depth_steps, settings.voxel_mode, settings.voxel_size),
+        )
         started, started_cpu = time.perf_counter(), time.thread_time()
         try:
             result = register(
@@ -250,23 +259,14 @@ class RegistrationPipeline:
         except ValueError as err:  # degenerate geometry, too few points, coordinates that overflow
             timings = _timings(model_read, data, started, started_cpu)
             return Rejected(**vars(header), reason=f"registration: {err}", input="pair", timings=timings)
-        advice = depth_step_advice(depth_steps, settings.voxel_mode, settings.voxel_size)
-        if advice and result.reliable:
-            refusal = terrace_refusal(
-                depth_steps,
-                model.depth_steps,  # looked for once per model message, and only here
-                settings.voxel_mode,
-                settings.voxel_size,
-            )
-            if refusal:
-                result = replace(result, reliable=False, reason=refusal)
         timings = _timings(model_read, data, started, started_cpu)
         self._frames = {"model": header.model_frame, "data": header.data_frame}
         return Registered(
             **vars(header),
             result=result,
-            data_points=len(data.points),
-            model_points=result.window_points or len(model),
+            data_points=len(data.points) if result.depth_averaged is None else _registered_data(result),
+            model_points=result.window_points
+            or len(model if result.depth_averaged is None else model.averaged(result.depth_averaged[1])),
             timings=timings,
             depth_steps=depth_steps,
             depth_step_advice=advice,
@@ -343,3 +343,8 @@ def pair_header(model_msg: PointCloud2Like, data_msg: PointCloud2Like, dims: int
 def describe(err: BaseException) -> str:
     text = str(err).strip()
     return f"{type(err).__name__}: {text}" if text else type(err).__name__
+
+
+def _registered_data(result: RegistrationResult) -> int:
+    """How many data points the core registered (its finest level's: an average's voxels)."""
+    return result.levels[-1].data_points if result.levels else 0

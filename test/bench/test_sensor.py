@@ -67,6 +67,28 @@ def test_each_sensed_cloud_says_where_its_camera_stood_in_its_own_coordinates() 
     assert crop.sensors[1] is None  # the scene as it is: no one sensor
 
 
+def test_a_case_in_its_sensors_frames_keeps_its_answer() -> None:
+    # Each cloud moved so that its camera stands at the origin (benchmarks/depth_sensor.py
+    # --sensor-frames): the truth moves with them, a cloud without a sensor stays.
+    rng = np.random.default_rng(5)
+    scene = np.concatenate([_wall(rng), _wall(rng) * [1.0, 1.0, -1.0] + [0.0, 0.0, 3.5]])
+    for case in (
+        sensed_frames_case(scene, "walls", 0.04, 0.1, 0.0, rng),
+        sensed_crop_case(scene, "walls", 0.4, 2.0, 0.04, 0.0, rng),
+    ):
+        moved = case.in_sensor_frames()
+        assert case.truth is not None and moved.truth is not None
+        assert moved.truth.scale == case.truth.scale
+        np.testing.assert_allclose(
+            moved.truth.apply(moved.data) + (case.sensors[1] if case.sensors[1] is not None else 0.0),
+            case.truth.apply(case.data),
+            atol=1e-9,
+        )
+        assert case.sensors[0] is not None and moved.sensors[0] is not None and not moved.sensors[0].any()
+        np.testing.assert_array_equal(moved.data, case.data - case.sensors[0])
+        assert (moved.sensors[1] is None) == (case.sensors[1] is None)
+
+
 def test_a_camera_sees_the_front_wall_and_not_what_it_hides() -> None:
     """A 1 x 1 panel at x = 2 in front of a 4 x 4 wall at x = 4, seen from the origin: the panel
     is all seen; of the wall, the part in the panel's shadow (2 x 2 at x = 4) is hidden but for

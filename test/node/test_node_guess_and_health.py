@@ -156,11 +156,17 @@ def test_clouds_lost_on_the_way_show_as_gaps_in_their_stamps_with_the_fix(runnin
         running.data_pub.publish(cloud_message(points, "velodyne", start + k * period))
         time.sleep(0.03)
     assert wait_until(lambda: "never arrived" in running.status()[1], 5.0), running.status()
-    level, message, values = running.status()
+    level, message, _ = running.status()
     assert level == 1 and "sensor period 100 ms" in message
     assert "FASTRTPS_DEFAULT_PROFILES_FILE=" in message and "fastdds_large_messages.xml" in message
-    # 12 gaps of two periods; the first few come before 10 gaps have shown the period.
-    assert 5 <= int(values["data clouds lost (stamp gaps)"]) <= 12
+
+    def lost() -> int:
+        return int(running.status()[2]["data clouds lost (stamp gaps)"])
+
+    # 12 gaps of two periods; the first few come before 10 gaps have shown the period. The WARN
+    # shows from 3 lost on, while a loaded machine may still be delivering the later clouds.
+    assert wait_until(lambda: lost() >= 5, 5.0), running.status()
+    assert lost() <= 12
 
 
 @pytest.mark.parametrize("running", [[Parameter("publish_tf", value=True)]], indirect=True)

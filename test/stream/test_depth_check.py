@@ -1,5 +1,5 @@
-"""Coarse depth steps in a data stream are noticed, reported with what to do, and go away once
-the clouds are averaged as advised: in the pipeline, the node's /diagnostics and the bag mode."""
+"""Coarse depth steps in a data stream are noticed, averaged out, reported with what to set, and
+the advice goes once the settings average them: in the pipeline, /diagnostics and the bag mode."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from support.depth_camera import quantised, room_corner
 
 from frisicp_core import Similarity
 from frisicp_core.depth_steps import DepthSteps
@@ -18,8 +19,8 @@ from frisicp_ros.stream.depth_check import (
     AVERAGE_STEPS,
     CHECK_EVERY,
     DepthStepCheck,
+    averaged_by_settings,
     depth_step_advice,
-    terrace_refusal,
 )
 from frisicp_ros.stream.outputs import rosbags_message_types
 from frisicp_ros.stream.pipeline import Registered, RegistrationPipeline
@@ -29,23 +30,9 @@ from frisicp_ros.stream.settings import settings_from
 STEP = 0.06  # at 3 m: about 1.7 % of the room corner's size, a coarse camera
 
 
-def room_corner(rng: np.random.Generator, n: int = 6000) -> np.ndarray:
-    """A floor and two walls 2-4 m in front of a camera at the origin looking along +z."""
-    u, v = rng.uniform(-1.0, 1.0, size=(2, n))
-    part = rng.integers(0, 3, size=n)
-    floor = np.column_stack([1.2 * u, np.full(n, 1.0), 3.0 + v])
-    left = np.column_stack([-1.2 + 0.6 * (v + 1), 0.9 * u, 3.0 + 0.8 * v])
-    right = np.column_stack([1.2 - 0.6 * (v + 1), 0.9 * u, 3.0 - 0.8 * v])
-    corner: np.ndarray = np.choose(part[:, None], [floor, left, right])
-    return corner
-
-
 def on_shells(points: np.ndarray, step: float = STEP) -> np.ndarray:
     """``points`` as a depth camera reports them: z on disparity shells ``step`` apart at 3 m."""
-    quantum = step / 9.0
-    depth = 1.0 / (np.round(1.0 / points[:, 2] / quantum) * quantum)
-    shelled: np.ndarray = points * (depth / points[:, 2])[:, None]
-    return shelled
+    return quantised(points, step, "z", np.random.default_rng(0))
 
 
 def message(points: np.ndarray, frame: str, stamp_ns: int):
@@ -89,23 +76,47 @@ def test_a_registered_pair_carries_the_finding_and_the_advice_works():
     assert isinstance(outcome, Registered) and outcome.depth_step_advice == ""
 
 
-def test_frames_of_a_coarse_camera_are_not_called_reliable_until_averaged():
-    # Two frames of one camera, both in its frame: the verdict cannot tell a terrace lock from a
-    # fit, so the pipeline does not trust it. A map without steps as the model: it does (above).
+def test_frames_of_a_coarse_camera_are_registered_averaged():
+    # Two frames of one camera, both in its frame: terrace onto terrace they could lock, so the
+    # core registers their averages over a step's voxels, unless the settings average them.
     rng = np.random.default_rng(3)
     first, second = (on_shells(room_corner(rng, 15_000)) for _ in range(2))
-    pipeline = RegistrationPipeline(settings_from({"max_points": 3000}))
+    pipeline = RegistrationPipeline(settings_from({"max_points": 5000}))
     outcome = pipeline.process(message(first, "camera", 1), message(second, "camera", 2))
-    assert isinstance(outcome, Registered) and not outcome.reliable
-    assert outcome.reason.startswith("both clouds come in coarse depth steps (data: 0.0")
-    assert "voxel_mode: centroid" in outcome.reason
-    assert pipeline.previous is None  # nor tracked from
-    step = outcome.depth_steps.step if outcome.depth_steps else 0.0
-    pipeline.update_settings(
-        replace(pipeline.settings, voxel_mode="centroid", voxel_size=AVERAGE_STEPS * step)
-    )
+    assert isinstance(outcome, Registered) and outcome.depth_steps is not None
+    edge = AVERAGE_STEPS * outcome.depth_steps.step
+    averaged = outcome.result.depth_averaged
+    assert averaged is not None and averaged == pytest.approx((edge, edge), rel=0.05)
+    assert outcome.data_points < 0.6 * 5000 and outcome.model_points < 0.5 * len(second)
+    assert "registered as their averages" in outcome.depth_step_advice
+    assert f"voxel_mode: centroid with voxel_size >= {edge:.3g}" in outcome.depth_step_advice
+    _right_or_refused(outcome)
+    # Averaged by the settings, before the cap: not again in the core, and no advice.
+    pipeline.update_settings(replace(pipeline.settings, voxel_mode="centroid", voxel_size=edge))
     outcome = pipeline.process(message(first, "camera", 3), message(second, "camera", 4))
-    assert isinstance(outcome, Registered) and not outcome.reason.startswith("both clouds")
+    assert isinstance(outcome, Registered) and outcome.result.depth_averaged is None
+    assert outcome.depth_step_advice == "" and outcome.data_points < 5000
+    _right_or_refused(outcome)
+    # Switched off, the clouds are registered as read (and capped).
+    pipeline.update_settings(
+        replace(
+            pipeline.settings,
+            voxel_mode="first",
+            voxel_size=0.0,
+            registration=replace(pipeline.settings.registration, average_depth_steps=False),
+        )
+    )
+    outcome = pipeline.process(message(first, "camera", 5), message(second, "camera", 6))
+    assert isinstance(outcome, Registered) and outcome.result.depth_averaged is None
+    assert outcome.data_points == 5000
+
+
+def _right_or_refused(outcome: Registered) -> None:
+    """Both frames sample one scene from one camera: the truth is the identity."""
+    similarity = outcome.result.similarity
+    if outcome.reliable:
+        assert np.degrees(np.arccos(np.clip((np.trace(similarity.rotation) - 1) / 2, -1, 1))) < 1.0
+        assert abs(similarity.scale - 1) < 0.01
 
 
 def test_no_advice_for_fine_steps_nor_once_followed():
@@ -116,11 +127,9 @@ def test_no_advice_for_fine_steps_nor_once_followed():
     assert depth_step_advice(coarse, "centroid", AVERAGE_STEPS * 0.06) == ""
     assert depth_step_advice(coarse, "centroid", 0.5 * AVERAGE_STEPS * 0.06) != ""  # too small to help
     assert depth_step_advice(coarse, "first", AVERAGE_STEPS * 0.06) != ""  # a first point keeps them
-    fine = replace(coarse, step=0.01, share=0.003)
-    assert terrace_refusal(coarse, coarse, "first", 0.0) != ""
-    assert terrace_refusal(coarse, fine, "first", 0.0) == terrace_refusal(coarse, None, "first", 0.0) == ""
-    assert terrace_refusal(fine, coarse, "first", 0.0) == ""
-    assert terrace_refusal(coarse, coarse, "centroid", AVERAGE_STEPS * 0.06) == ""
+    assert averaged_by_settings(coarse, "centroid", AVERAGE_STEPS * 0.06)
+    assert not averaged_by_settings(coarse, "first", AVERAGE_STEPS * 0.06)
+    assert not averaged_by_settings(None, "centroid", 1.0)
 
 
 def _registered(depth_steps: DepthSteps | None) -> Registered:
@@ -144,6 +153,10 @@ def test_diagnostics_warn_with_the_advice_while_the_steps_are_coarse():
     report = status.report(0, 0, True)
     assert report.level == WARN and "voxel_mode: centroid" in report.message
     assert report.values["data depth steps"].startswith("depth steps of 0.06 at the median z 3")
+    assert report.values["last depth averaged (data, model voxels)"] == "no"
+    averaged = _registered(COARSE)
+    status.record(replace(averaged, result=replace(averaged.result, depth_averaged=(0.06, 0.05))), 0.1, 0.0)
+    assert status.report(0, 0, True).values["last depth averaged (data, model voxels)"] == "0.06, 0.05"
     status.record(_registered(None), 0.1, 0.0)  # averaged as advised
     assert status.report(0, 0, True).level == OK
 
@@ -155,6 +168,9 @@ def test_the_bag_mode_writes_the_steps_in_each_line_and_the_advice_in_its_summar
     coarse = _registered(COARSE)
     record = pair_record(pair, coarse)
     assert record["data_depth_steps"] == {"depth": "z", "step": 0.06, "median_depth": 3.0, "share": 0.017}
+    assert "depth_averaged" not in record
+    averaged = replace(coarse, result=replace(coarse.result, depth_averaged=(0.06, 0.05)))
+    assert pair_record(pair, averaged)["depth_averaged"] == [0.06, 0.05]
     stats = RunStats()
     stats.add(pair, _registered(None))
     assert "voxel_mode" not in stats.summary(0)
