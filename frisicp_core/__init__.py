@@ -5,6 +5,7 @@ No ROS imports here; the ROS layer lives in ``frisicp_ros``.
 
 from .ambiguity import Competitor
 from .config import ConvergenceCriteria, InitialGuess, Initialization, Method, RegistrationConfig, Tolerance
+from .depth_steps import DepthSteps, find_depth_steps
 from .estimate import estimate_similarity
 from .fit import Fit
 from .io import CloudFileError, read_points, read_scan_pose
@@ -25,6 +26,7 @@ __all__ = [
     "CloudFileError",
     "Competitor",
     "ConvergenceCriteria",
+    "DepthSteps",
     "Fit",
     "FloatArray",
     "InitialGuess",
@@ -47,6 +49,7 @@ __all__ = [
     "closed_contour",
     "downsample",
     "estimate_similarity",
+    "find_depth_steps",
     "judge",
     "nearest",
     "read_points",

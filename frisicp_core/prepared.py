@@ -140,14 +140,16 @@ class PreparedModel:
         for once (:func:`frisicp_core.depth_steps.find_depth_steps`)."""
         return self._cache.value(("depth_steps",), lambda: find_depth_steps(self.points))
 
-    def averaged(self, edge: float) -> PreparedModel:
-        """The model averaged over voxels of ``edge`` (:func:`frisicp_core.voxel_centroids`),
-        prepared, kept per edge (:mod:`frisicp_core.terraces`); ``ValueError`` when the average
-        is no usable point set."""
+    def averaged(self, edge: float, offset: float = 0.0) -> PreparedModel:
+        """The model averaged over voxels of ``edge`` on the grid moved by ``offset`` voxels
+        (:func:`frisicp_core.voxel_centroids`), prepared, kept per edge and offset
+        (:mod:`frisicp_core.terraces`); ``ValueError`` when the average is no usable point set."""
         return self._cache.value(
-            ("averaged", edge),
+            ("averaged", edge, offset),
             lambda: PreparedModel.of(
-                as_point_set(voxel_centroids(self.points, edge), "model averaged over its depth steps")
+                as_point_set(
+                    voxel_centroids(self.points, edge, offset), "model averaged over its depth steps"
+                )
             ),
         )
 

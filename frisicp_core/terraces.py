@@ -20,11 +20,17 @@ sensors' frames show no shells and are registered as given; so are clouds averag
 centroids may still lie near shells but which an average over voxels as wide as the step leaves
 much as they are (a voxel then holds about one point). A cloud with steps onto one without (a
 camera frame onto a lidar map) cannot lock terrace onto terrace and is registered as given.
+
+Where a voxel's walls fall is arbitrary, and the means move with them: a bias of the answer that
+the split halves share. :func:`frisicp_core.registration.register` refines a reliable answer
+again on grids moved by half a voxel (:meth:`Averaged.on_shifted_grids`) and widens its
+covariance by the difference. What averaging leaves: ``benchmarks/depth_sensor.py
+--sensor-frames`` and its variants (README, "Depth-sensor noise").
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from .depth_steps import DepthSteps, find_depth_steps
 from .points import as_point_set
@@ -38,13 +44,24 @@ AVERAGE_STEPS = 1.0
 
 @dataclass(frozen=True)
 class Averaged:
-    """Both clouds averaged over their depth steps: the points to register, and the voxel edges
-    used (data units, model units) with the steps that chose them."""
+    """Both clouds averaged over their depth steps: the points to register, the voxel edges used
+    (data units, model units) with the steps that chose them, and the clouds as given."""
 
     data: FloatArray
     model: PreparedModel
     edges: tuple[float, float]
     steps: tuple[DepthSteps, DepthSteps]
+    given: tuple[FloatArray, PreparedModel]
+
+    def on_shifted_grids(self) -> Averaged:
+        """The same averages on grids moved by half a voxel along every axis: where the voxels'
+        walls fall is arbitrary, and what it moves in the answer is part of its uncertainty
+        (:func:`frisicp_core.registration.register` measures it)."""
+        data, model = self.given
+        shifted = as_point_set(
+            voxel_centroids(data, self.edges[0], offset=0.5), "data averaged over its depth steps"
+        )
+        return replace(self, data=shifted, model=model.averaged(self.edges[1], offset=0.5))
 
 
 def average_terraces(data: FloatArray, model: PreparedModel) -> Averaged | None:
@@ -65,4 +82,4 @@ def average_terraces(data: FloatArray, model: PreparedModel) -> Averaged | None:
         return None
     edges = (AVERAGE_STEPS * data_steps.step, AVERAGE_STEPS * model_steps.step)
     averaged = as_point_set(voxel_centroids(data, edges[0]), "data averaged over its depth steps")
-    return Averaged(averaged, model.averaged(edges[1]), edges, (data_steps, model_steps))
+    return Averaged(averaged, model.averaged(edges[1]), edges, (data_steps, model_steps), (data, model))

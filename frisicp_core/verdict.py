@@ -128,17 +128,18 @@ def judge(
         )
     determined = not problems
     if uncertainty is not None and tolerance is not None:
-        problems.extend(_uncertain(uncertainty, tolerance, model_diagonal))
+        problems.extend(uncertain_components(uncertainty, tolerance, model_diagonal))
     return Verdict(not problems, "; ".join(problems), determined)
 
 
 def within_tolerance(uncertainty: Uncertainty, tolerance: Tolerance, diagonal: float) -> bool:
     """True when :data:`SIGMAS` sigmas of every component lie within its tolerance."""
-    return not _uncertain(uncertainty, tolerance, diagonal)
+    return not uncertain_components(uncertainty, tolerance, diagonal)
 
 
-def _uncertain(uncertainty: Uncertainty, tolerance: Tolerance, diagonal: float) -> list[str]:
-    """The components whose SIGMAS-sigma exceeds its tolerance."""
+def uncertain_components(uncertainty: Uncertainty, tolerance: Tolerance, diagonal: float) -> list[str]:
+    """What :func:`judge` says of each component whose :data:`SIGMAS` sigmas exceed its
+    tolerance (none: an empty list)."""
     checks = (
         ("rotation", uncertainty.rotation_deg, tolerance.rotation_deg, "deg"),
         ("scale", uncertainty.scale * 100.0, tolerance.scale * 100.0, "%"),

@@ -58,15 +58,16 @@ def first_in_voxel(points: np.ndarray, size: float) -> np.ndarray:
     return _first_in_cells(cells)
 
 
-def voxel_centroids(points: np.ndarray, size: float) -> np.ndarray:
+def voxel_centroids(points: np.ndarray, size: float, offset: float = 0.0) -> np.ndarray:
     """The mean of the points in every occupied voxel of edge ``size``, one row per voxel, in the
-    input order of each voxel's first point (module doc: why a mean).
+    input order of each voxel's first point (module doc: why a mean). ``offset``: the grid moved
+    by that many voxels along every axis (cells ``floor(x / size - offset)``).
 
     ``points`` is an (N, m) array of finite values; ``size`` > 0 in the points' units. A mean
     may lie off the surface at edges and corners by up to about half a voxel; a voxel holding
     one point keeps it exactly. Costs a stable sort of the cells' packed keys, more than
     :func:`voxel_filter`'s lookup table."""
-    cells, fits = _cells(points, size, "voxel_centroids")
+    cells, fits = _cells(points, size, "voxel_centroids", offset)
     n = points.shape[0]
     if n < 2:
         return np.array(points, dtype=np.float64)
@@ -89,9 +90,12 @@ def voxel_centroids(points: np.ndarray, size: float) -> np.ndarray:
     return ordered
 
 
-def _cells(points: np.ndarray, size: float, caller: str) -> tuple[list[np.ndarray], np.ndarray]:
-    """The cell number of every point along each axis (float64 columns of integers), and which
-    points have cells within float64 (a coordinate beyond ``size * 1.8e308`` has none)."""
+def _cells(
+    points: np.ndarray, size: float, caller: str, offset: float = 0.0
+) -> tuple[list[np.ndarray], np.ndarray]:
+    """The cell number of every point along each axis (float64 columns of integers) on the grid
+    moved by ``offset`` voxels, and which points have cells within float64 (a coordinate beyond
+    ``size * 1.8e308`` has none)."""
     if points.ndim != 2:
         raise ValueError(f"points must be an (N, m) array, got shape {points.shape}")
     if not (np.isfinite(size) and size > 0):
@@ -100,7 +104,9 @@ def _cells(points: np.ndarray, size: float, caller: str) -> tuple[list[np.ndarra
     if not all(np.isfinite(column).all() for column in columns):
         raise ValueError(f"{caller} needs finite points (drop NaN/Inf first)")
     with np.errstate(over="ignore"):
-        cells = [np.floor(column / size) for column in columns]
+        cells = [
+            np.floor(column / size - offset) if offset else np.floor(column / size) for column in columns
+        ]
     fits = np.ones(points.shape[0], dtype=bool)
     for column in cells:
         fits &= np.isfinite(column)

@@ -3,6 +3,8 @@ step's voxels; anything else is registered as given."""
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 from support.depth_camera import quantised, room_corner
@@ -11,6 +13,7 @@ from frisicp_core import (
     PreparedModel,
     RegistrationConfig,
     Similarity,
+    Tolerance,
     axis_angle_rotation,
     register,
     voxel_centroids,
@@ -86,3 +89,34 @@ def test_two_dimensional_clouds_have_no_depth_steps():
     rng = np.random.default_rng(5)
     contour = rng.uniform(1.0, 2.0, size=(600, 2))
     assert average_terraces(contour, PreparedModel(contour)) is None
+
+
+def test_what_the_voxel_grid_moves_widens_the_uncertainty_and_can_refuse():
+    # The same averages registered directly (no averaging in the core) answer the same pose,
+    # but only the core's own average adds what grids half a voxel apart move: d d^T.
+    data, model = frames(0)
+    prepared = PreparedModel(model)
+    loose = RegistrationConfig(tolerance=Tolerance(rotation_deg=10.0, scale=0.1, translation=0.1))
+    averaged = register(data, prepared, loose)
+    assert averaged.reliable and averaged.depth_averaged is not None
+    data_edge, model_edge = averaged.depth_averaged
+    direct = register(
+        voxel_centroids(data, data_edge),
+        prepared.averaged(model_edge),
+        replace(loose, average_depth_steps=False),
+    )
+    assert np.array_equal(direct.similarity.matrix(), averaged.similarity.matrix())
+    added = averaged.covariance - direct.covariance
+    eigenvalues = np.linalg.eigvalsh(added)
+    assert eigenvalues[-1] > 0 and np.all(eigenvalues[:-1] < 1e-12 * eigenvalues[-1])  # one direction
+    # A scale tolerance the direct answer just meets, the widened one does not.
+    tight = replace(loose, tolerance=replace(loose.tolerance, scale=3.0001 * direct.uncertainty.scale))
+    assert register(
+        voxel_centroids(data, data_edge),
+        prepared.averaged(model_edge),
+        replace(tight, average_depth_steps=False),
+    ).reliable
+    refused = register(data, prepared, tight)
+    assert not refused.reliable
+    assert refused.reason.startswith("averaged over a depth step's voxels, on grids half a voxel apart")
+    assert "3 sigma of the scale" in refused.reason
