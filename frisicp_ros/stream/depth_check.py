@@ -11,10 +11,10 @@ by default; :mod:`frisicp_core.terraces`), on the clouds it is given: the data a
 ``max_points``. Averaged in the reader instead (``voxel_mode: centroid`` with ``voxel_size`` at
 least a step: :func:`depth_step_advice` says so), before the cap, a voxel holds more points:
 ``benchmarks/depth_sensor.py``'s frame pairs at steps of 1 % came out 29 of 36 right and reliable
-so (``--average 1``, docs/depth_sensor_averaged.md) against 26 averaged by the core after the cap
+so (``--average 1``, docs/depth_sensor_averaged.md) against 24 averaged by the core after the cap
 (``--sensor-frames``, docs/depth_sensor_sensor_frames.md), none wrong and reliable either way.
 Clouds the settings average already are not averaged again by the core
-(:func:`averaged_by_settings`): both averages, one over the other, left 26
+(:func:`averaged_by_settings`): both averages, one over the other, left 24
 (``--sensor-frames --average 1``, docs/depth_sensor_sensor_frames_averaged.md).
 
 The sensor does not change from one cloud to the next, so :class:`DepthStepCheck` looks at the
