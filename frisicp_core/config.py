@@ -167,8 +167,9 @@ class RegistrationConfig:
     ``average_depth_steps``: where both clouds come in a depth camera's coarse depth steps about
     their own origins (each in its camera's frame), register their averages over voxels a step
     wide instead (:mod:`frisicp_core.terraces`): two such frames lock terrace onto terrace, a
-    wrong pose that looks right. Costs a look at the data's depths (milliseconds) where the model
-    shows steps or is an array; the result's ``depth_averaged`` says what was done.
+    wrong pose that looks right. Costs a look at the model's depths (milliseconds; once per
+    :class:`~frisicp_core.PreparedModel`) and, where they show steps, at the data's; the result's
+    ``depth_averaged`` says what was done. False for clouds the caller averaged already.
     ``budget_seconds``: wall-clock time one ``register`` call may take (None, the default:
     unbounded; the node and ``frisicp bag`` set 5 s). Past it the iterations stop and the result
     is returned unreliable, reason "budget exceeded" (see :mod:`frisicp_core.budget`); the cold

@@ -16,10 +16,12 @@ right, none reliable, docs/depth_sensor_averaged_two_steps.md).
 
 :func:`average_terraces` does that when both clouds show coarse steps about their own origins
 (:attr:`DepthSteps.coarse`): clouds as a camera driver publishes them. Clouds moved out of their
-sensors' frames show no shells and are registered as given; so are clouds averaged already, whose
-centroids may still lie near shells but which an average over voxels as wide as the step leaves
-much as they are (a voxel then holds about one point). A cloud with steps onto one without (a
-camera frame onto a lidar map) cannot lock terrace onto terrace and is registered as given.
+sensors' frames show no shells and are registered as given, and so is a cloud with steps onto one
+without (a camera frame onto a lidar map), which cannot lock terrace onto terrace. Clouds the
+caller averaged already may still show their steps (a voxel's mean can lie near a shell) and are
+averaged again, which thins them further for nothing (``--sensor-frames --average 1``,
+docs/depth_sensor_sensor_frames_averaged.md): pass ``average_depth_steps=False`` for them, as the
+node and ``frisicp bag`` do while their voxel settings average the data.
 
 Where a voxel's walls fall is arbitrary, and the means move with them: a bias of the answer that
 the split halves share. :func:`frisicp_core.registration.register` refines a reliable answer

@@ -264,9 +264,8 @@ class RegistrationPipeline:
         return Registered(
             **vars(header),
             result=result,
-            data_points=len(data.points) if result.depth_averaged is None else _registered_data(result),
-            model_points=result.window_points
-            or len(model if result.depth_averaged is None else model.averaged(result.depth_averaged[1])),
+            data_points=_registered(result, 0, len(data.points)),
+            model_points=result.window_points or _registered(result, 1, len(model)),
             timings=timings,
             depth_steps=depth_steps,
             depth_step_advice=advice,
@@ -345,6 +344,10 @@ def describe(err: BaseException) -> str:
     return f"{type(err).__name__}: {text}" if text else type(err).__name__
 
 
-def _registered_data(result: RegistrationResult) -> int:
-    """How many data points the core registered (its finest level's: an average's voxels)."""
-    return result.levels[-1].data_points if result.levels else 0
+def _registered(result: RegistrationResult, side: int, read: int) -> int:
+    """How many points of one side (0: data, 1: model) the core registered: the ``read`` ones, or
+    where it averaged them (``result.depth_averaged``) its finest level's, an average's voxels."""
+    if result.depth_averaged is None or not result.levels:
+        return read
+    finest = result.levels[-1]
+    return finest.data_points if side == 0 else finest.model_points

@@ -479,9 +479,9 @@ OPTIONS: tuple[Option, ...] = (
     core_option(
         "average_depth_steps",
         "where both clouds come in a depth camera's coarse depth steps about their frames' origins,"
-        " register their averages over voxels a step wide (a stream averages its data clouds before"
-        " the cap): two frames of such a camera otherwise lock terrace onto terrace, a wrong pose"
-        " that looks reliable; false = registered as read",
+        " register their averages over voxels a step wide (not again where voxel_mode: centroid"
+        " averages them already): two frames of such a camera otherwise lock terrace onto terrace,"
+        " a wrong pose that looks reliable; false = registered as read",
     ),
     core_option("seed", "seed of the random down-sampling", bounds=(0, 2**31 - 1)),
     core_option("backend", "KD-tree library (auto: pykdtree when installed)", choices=BACKENDS),
