@@ -85,7 +85,9 @@ class Fuzzer(NodeAndProbe):
     def answer(self, data: PointCloud2) -> Similarity | None:
         """The published similarity for ``data`` (transform and its scale), or None."""
         key = (data.header.stamp.sec, data.header.stamp.nanosec)
-        deadline = time.monotonic() + 5
+        # As long as a step may take: a CI run (2026-12-06) once waited 5 s in vain here
+        # for a pair the node had registered (the transform and the scale come on two topics).
+        deadline = time.monotonic() + STEP_TIMEOUT
         while time.monotonic() < deadline:
             if key in self.transforms and len(self.scales) > self.transforms[key][0]:
                 index, transform = self.transforms[key]
