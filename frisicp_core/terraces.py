@@ -34,7 +34,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-from .depth_steps import DepthSteps, find_depth_steps
+from .depth_steps import find_depth_steps
 from .points import as_point_set
 from .prepared import PreparedModel
 from .similarity import FloatArray
@@ -47,12 +47,11 @@ AVERAGE_STEPS = 1.0
 @dataclass(frozen=True)
 class Averaged:
     """Both clouds averaged over their depth steps: the points to register, the voxel edges used
-    (data units, model units) with the steps that chose them, and the clouds as given."""
+    (data units, model units), and the clouds as given."""
 
     data: FloatArray
     model: PreparedModel
     edges: tuple[float, float]
-    steps: tuple[DepthSteps, DepthSteps]
     given: tuple[FloatArray, PreparedModel]
 
     def on_shifted_grids(self) -> Averaged:
@@ -60,10 +59,11 @@ class Averaged:
         walls fall is arbitrary, and what it moves in the answer is part of its uncertainty
         (:func:`frisicp_core.registration.register` measures it)."""
         data, model = self.given
-        shifted = as_point_set(
-            voxel_centroids(data, self.edges[0], offset=0.5), "data averaged over its depth steps"
+        return replace(
+            self,
+            data=_averaged_data(data, self.edges[0], offset=0.5),
+            model=model.averaged(self.edges[1], offset=0.5),
         )
-        return replace(self, data=shifted, model=model.averaged(self.edges[1], offset=0.5))
 
 
 def average_terraces(data: FloatArray, model: PreparedModel) -> Averaged | None:
@@ -83,5 +83,10 @@ def average_terraces(data: FloatArray, model: PreparedModel) -> Averaged | None:
     if data_steps is None or not data_steps.coarse:
         return None
     edges = (AVERAGE_STEPS * data_steps.step, AVERAGE_STEPS * model_steps.step)
-    averaged = as_point_set(voxel_centroids(data, edges[0]), "data averaged over its depth steps")
-    return Averaged(averaged, model.averaged(edges[1]), edges, (data_steps, model_steps), (data, model))
+    return Averaged(_averaged_data(data, edges[0]), model.averaged(edges[1]), edges, (data, model))
+
+
+def _averaged_data(data: FloatArray, edge: float, offset: float = 0.0) -> FloatArray:
+    """The data's voxel means (:func:`voxel_centroids`), validated as the model's average is
+    (:meth:`PreparedModel.averaged`)."""
+    return as_point_set(voxel_centroids(data, edge, offset), "data averaged over its depth steps")

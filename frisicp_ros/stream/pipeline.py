@@ -261,11 +261,13 @@ class RegistrationPipeline:
             return Rejected(**vars(header), reason=f"registration: {err}", input="pair", timings=timings)
         timings = _timings(model_read, data, started, started_cpu)
         self._frames = {"model": header.model_frame, "data": header.data_frame}
+        # Averaged by the core (result.depth_averaged), the points registered are its finest level's.
+        finest = result.levels[-1] if result.depth_averaged is not None and result.levels else None
         return Registered(
             **vars(header),
             result=result,
-            data_points=_registered(result, 0, len(data.points)),
-            model_points=result.window_points or _registered(result, 1, len(model)),
+            data_points=len(data.points) if finest is None else finest.data_points,
+            model_points=result.window_points or (len(model) if finest is None else finest.model_points),
             timings=timings,
             depth_steps=depth_steps,
             depth_step_advice=advice,
@@ -342,12 +344,3 @@ def pair_header(model_msg: PointCloud2Like, data_msg: PointCloud2Like, dims: int
 def describe(err: BaseException) -> str:
     text = str(err).strip()
     return f"{type(err).__name__}: {text}" if text else type(err).__name__
-
-
-def _registered(result: RegistrationResult, side: int, read: int) -> int:
-    """How many points of one side (0: data, 1: model) the core registered: the ``read`` ones, or
-    where it averaged them (``result.depth_averaged``) its finest level's, an average's voxels."""
-    if result.depth_averaged is None or not result.levels:
-        return read
-    finest = result.levels[-1]
-    return finest.data_points if side == 0 else finest.model_points
