@@ -17,10 +17,18 @@ setup: $(STAMP)
 demo: $(STAMP)
 	$(BIN)/frisicp-demo
 
-# pytest exits 5 when it collects nothing: that is a failure here, said plainly.
+# The README's test command: every test, in two runs. The computing ones (test/core, test/stream,
+# test/bench) TEST_JOBS at a time (pytest-xdist, a test file per worker: its module fixtures are
+# built once); the rest, which start processes, send signals or run ROS and time their waits for
+# an otherwise idle machine, one at a time (a new test folder lands here). pytest exits 5 when it
+# collects nothing: that is a failure here, said plainly.
+PARALLEL_TESTS := test/core test/stream test/bench
+TEST_JOBS ?= 2
 test: $(STAMP)
-	@$(BIN)/python -m pytest -q test; rc=$$?; \
-	  if [ $$rc -eq 5 ]; then echo "pytest collected no tests: failing"; fi; exit $$rc
+	@$(BIN)/python -m pytest -q -n $(TEST_JOBS) --dist loadfile $(PARALLEL_TESTS); first=$$?; \
+	  $(BIN)/python -m pytest -q test $(addprefix --ignore=,$(PARALLEL_TESTS)); second=$$?; \
+	  for rc in $$first $$second; do if [ $$rc -eq 5 ]; then echo "pytest collected no tests: failing"; fi; done; \
+	  if [ $$first -ne 0 ]; then exit $$first; fi; exit $$second
 
 # The package in a plain ROS 2 workspace whose Python packages come only from package.xml's keys
 # (test/support/workspace.py): colcon build, colcon test --packages-select frisicp_ros, colcon
@@ -74,16 +82,12 @@ bench: $(STAMP)
 bench-trust: $(STAMP)
 	nice -n 5 $(BIN)/python benchmarks/trustworthy.py --jobs $(or $(JOBS),2)
 
-# Every script in benchmarks/ once with --quick: seconds each, reports under build/ (docs/ keeps
-# the full runs' figures), so a script that no longer runs against today's code fails here (CI).
-# A script lacking its data or an optional package (ROS, Open3D) says so and skips that part.
+# Every script in benchmarks/ once with --quick, two at a time (tools/bench_smoke.py; JOBS=1 for one):
+# reports under build/ (docs/ keeps the full runs' figures), so a script that no longer runs
+# against today's code fails here (CI). A script lacking its data or an optional package (ROS,
+# Open3D) says so and skips that part.
 bench-smoke: $(STAMP)
-	@mkdir -p build/bench-smoke; for script in benchmarks/*.py; do \
-	  name=$$(basename $$script .py); log=build/bench-smoke/$$name.log; start=$$(date +%s); \
-	  if OMP_NUM_THREADS=1 $(BIN)/python $$script --quick > $$log 2>&1; then \
-	    echo "ok   $$name ($$(( $$(date +%s) - start )) s)"; grep -h "skipped" $$log || true; \
-	  else cat $$log; echo "FAIL $$name (whole output above, and in $$log)"; exit 1; fi; \
-	done
+	$(BIN)/python tools/bench_smoke.py --jobs $(or $(JOBS),2)
 
 # The paper's experiments on ../shared/data -> docs/benchmarks/ (tables, JSON, figures).
 # One thread per method: on a shared 2-core machine OpenMP's idle-waiting threads make

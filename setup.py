@@ -64,6 +64,8 @@ setup(
         "test": [
             "distributed>=2024.8",  # the cluster tests start a real scheduler and workers
             "pytest>=7",
+            # `make test` runs the computing tests two at a time (a file per worker): CI's 30 minutes
+            "pytest-xdist>=3.5",
             "mcap-ros2-support>=0.5",
             "colcon-common-extensions",
             "pillow>=9",

@@ -55,7 +55,7 @@ from frisicp_bench import script
 from frisicp_bench.terrain import Terrain, scan_errors
 from frisicp_core import PreparedModel, Similarity
 
-DOMAIN_ID = 189  # own domain: never shared with a test module, the demo or node_latency.py
+DOMAIN_ID = 189  # own domain: never shared with a test module, the demo, node_latency.py or doc_pictures.py
 TARGETS = {"output_rate_hz": 9.5, "latency_p95_ms": 100.0}
 ACCURACY = (1.0, 0.01, 0.005)  # rotation deg, relative scale, translation share of the scan's diagonal
 PROFILE = """<?xml version="1.0" encoding="UTF-8" ?>

@@ -6,7 +6,7 @@
 - ``bag_over_time.png``: ``frisicp bag --plot`` of a 30 s recording made here: a latched map (the
   built-in bumpy surface) and a 2 Hz sensor moving as frisicp-demo's truth moves, with two
   damaged clouds (random bytes, a cloud of 3 points) among them;
-- ``demo_last_alignment.png``: ``frisicp-demo --plot`` (ROS 2 on loopback, domain 189; skipped
+- ``demo_last_alignment.png``: ``frisicp-demo --plot`` (ROS 2 on loopback, domain 187; skipped
   with a note without rclpy).
 
     python benchmarks/doc_pictures.py [--out docs/images] [--only register,bag,demo] [--data DIR]
@@ -30,7 +30,7 @@ from frisicp_core import Similarity, axis_angle_rotation, bumpy_surface, read_po
 
 ROOT = Path(__file__).resolve().parents[1]
 SCRIPTS = Path(sys.executable).parent
-DEMO_DOMAIN = "189"
+DEMO_DOMAIN = "187"  # its own: never shared with node_latency.py (188), big_map_node.py (189) or a test
 DEMO_SECONDS = 6  # the full run's demo; --quick: QUICK_DEMO_SECONDS
 QUICK_DEMO_SECONDS = 3
 
