@@ -1,7 +1,7 @@
-"""Fuzz: a live node fed >= 2,000 hostile PointCloud2 messages of every known class (as data and
-as model), interleaved with valid pairs. Seeded and bounded (9.8 min on the shared
-2-core VM under load, 2026-12-01, with 1,000-point valid clouds; 20-80 s with the core before its
-global search and probes).
+"""Fuzz: a live node fed >= 1,000 hostile PointCloud2 messages of every known class (as data and
+as model), interleaved with valid pairs. Seeded and bounded (about 3.5 min on the 2-core VM; a
+cloud of another shape costs a cold global search, 3 s, most of it). 2,100 messages, as until
+2026-12-06, took 7 of CI's 30 minutes; `make fuzz` sends 2,000 to the console-script node.
 
 Asserts: the node stays alive (worker, executor); every valid pair is answered correctly
 (rotation < 1 degree, scale < 1 %); no cloud of nonsense numbers (wrong byte order, random
@@ -42,7 +42,7 @@ from frisicp_core import Similarity, rotation_angle  # noqa: E402
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 SEED = 2026
-HOSTILE_MESSAGES = 2100
+HOSTILE_MESSAGES = 1050
 VALID_EVERY = 8  # a valid pair after every 8 hostile messages
 STEP_TIMEOUT = 10.0
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
@@ -201,7 +201,7 @@ def test_hostile_messages_never_kill_hang_or_poison_the_node():
         assert not published_garbage, f"{len(published_garbage)} garbage clouds were published as poses"
         assert fuzzer.node._worker.is_alive() and fuzzer.spinner.is_alive()
         assert status._worker_stopped is None
-        assert set(sent) == set(HOSTILE) and sum(sent.values()) >= 2000
+        assert set(sent) == set(HOSTILE) and sum(sent.values()) >= 1000
         assert fuzzer.processed() == data_messages, "a pair was lost or counted twice"
         assert fuzzer.node._slot.dropped == 0 and report.values["publish errors"] == "0"
         assert rss_growth < 20.0, f"resident memory grew {rss_growth:.1f} MiB"
