@@ -46,6 +46,12 @@ view's elevations, each keeping a thin band of points (:func:`frisicp_bench.sens
 so the clouds come as rings; with ``--steps 0`` its noise is along the rays only (a lidar's
 ranges are not quantised in disparity).
 
+``--ring-spacing DEG``: a real lidar's beams instead, at fixed elevations DEG apart about the
+z axis (:func:`frisicp_bench.sensor.fixed_rings`), the same for both frames, and the second
+frame's sensor moved across that axis (``sensed_frames_case(..., level=True)``), as a vehicle's
+lidar moves: its rings on the ground and on walls along the way fall where the other frame's
+did, the lidar's counterpart of terrace onto terrace.
+
 ``--average F``: what a user can do about coarse steps: both clouds averaged on a voxel grid
 (:func:`frisicp_core.voxel_centroids`, the mean of each voxel's points, as the node's and
 ``frisicp bag``'s ``voxel_mode: centroid`` does) of edge F times the depth step at the median
@@ -55,7 +61,7 @@ the scene frames here do; with ``--sensor-frames`` the core averages the average
 
 Usage: python benchmarks/depth_sensor.py [--jobs 2] [--data DIR] [--steps 0.005,0.01,0.02]
                                          [--suite frames] [--occlusion [--flying]] [--on-shells]
-                                         [--rings N] [--sensor-frames]
+                                         [--rings N | --ring-spacing DEG] [--sensor-frames]
                                          [--average F] [--draw N] [--out docs/depth_sensor.md]
        python benchmarks/depth_sensor.py --quick   # one frame pair and one crop of rs1 -> build/
 Exits 0 without measuring when the data folder is absent, saying so.
@@ -81,7 +87,7 @@ from frisicp_bench.cases import PAPER_SCALES
 from frisicp_bench.metrics import model_size, pose_errors
 from frisicp_bench.report import case_record, write_report, wrong_but_reliable
 from frisicp_bench.scenes import object_cloud
-from frisicp_bench.sensor import ring_sampled, sensed_crop_case, sensed_frames_case, visible
+from frisicp_bench.sensor import fixed_rings, ring_sampled, sensed_crop_case, sensed_frames_case, visible
 from frisicp_core import downsample, register, voxel_centroids
 from frisicp_core.depth_steps import find_depth_steps
 
@@ -107,23 +113,28 @@ def score(
     flying: bool = False,
     on_shells: bool = False,
     sensor_frames: bool = False,
+    ring_spacing: float = 0.0,
 ) -> dict[str, Any]:
     """Build, register (cold and from the truth) and score one case, deterministic in its key and
     ``draw``: (suite, scene, depth step, shift or share, repeat); ``occlusion``, ``flying``,
-    ``on_shells``, ``rings``, ``sensor_frames`` and ``average`` as the options of the same names
-    (module doc)."""
+    ``on_shells``, ``rings``, ``ring_spacing`` (degrees), ``sensor_frames`` and ``average`` as
+    the options of the same names (module doc)."""
     suite, scene_name, step, size, repeat = key
     salt = f"{suite}/{scene_name}/{step}/{size}/{repeat}" + (f"/draw {draw}" if draw else "")
     rng = np.random.default_rng(zlib.crc32(salt.encode()))
     sight = (
-        functools.partial(_sight, occlusion=occlusion, rings=rings, flying=flying)
-        if occlusion or rings
+        functools.partial(
+            _sight, occlusion=occlusion, rings=rings, flying=flying, ring_spacing=np.radians(ring_spacing)
+        )
+        if occlusion or rings or ring_spacing
         else None
     )
     scene = object_cloud(data_dir, scene_name)
     name = Path(scene_name).stem
     if suite == "frames":
-        case = sensed_frames_case(scene, name, step, size, NOISE, rng, sight, on_shells)
+        case = sensed_frames_case(
+            scene, name, step, size, NOISE, rng, sight, on_shells, level=ring_spacing > 0
+        )
     else:
         case = sensed_crop_case(
             scene, name, size, float(rng.choice(PAPER_SCALES)), step, NOISE, rng, sight, on_shells
@@ -168,10 +179,19 @@ def score(
     )
 
 
-def _sight(points: np.ndarray, camera: np.ndarray, occlusion: bool, rings: int, flying: bool) -> np.ndarray:
+def _sight(
+    points: np.ndarray,
+    camera: np.ndarray,
+    occlusion: bool,
+    rings: int,
+    flying: bool,
+    ring_spacing: float = 0.0,
+) -> np.ndarray:
     """What the sensor at ``camera`` keeps: the front surface (``occlusion``, with ``flying``
-    pixels), in rings."""
+    pixels), in rings (``rings`` spread over the view, or ``ring_spacing`` radians apart)."""
     kept = visible(points, camera, flying) if occlusion else points
+    if ring_spacing:
+        return fixed_rings(kept, camera, ring_spacing)
     return ring_sampled(kept, camera, rings) if rings else kept
 
 
@@ -304,11 +324,22 @@ def main(argv: list[str] | None = None) -> int:
         metavar="N",
         help="a lidar's N rings instead of a raster (default 0: off)",
     )
+    command.add_argument(
+        "--ring-spacing",
+        type=float,
+        default=0.0,
+        metavar="DEG",
+        help="a lidar's rings at fixed elevations DEG apart, the frames' sensors moved level (default 0: off)",
+    )
     args = script.parse(command, argv)
     if args.flying and not args.occlusion:
         command.error("--flying needs --occlusion (flying pixels lie at the edges it finds)")
     if args.rings < 0 or args.rings == 1:
         command.error("--rings must be 0 (off) or at least 2")
+    if not (np.isfinite(args.ring_spacing) and 0.0 <= args.ring_spacing < 90.0):
+        command.error("--ring-spacing must be a number of degrees in [0, 90)")
+    if args.ring_spacing and args.rings:
+        command.error("--rings and --ring-spacing are two lidars: choose one")
     if not (np.isfinite(args.average) and args.average >= 0):
         command.error("--average must be a finite number >= 0")
     suites = tuple(args.suite or SUITES)
@@ -340,6 +371,7 @@ def main(argv: list[str] | None = None) -> int:
         flying=args.flying,
         on_shells=args.on_shells,
         sensor_frames=args.sensor_frames,
+        ring_spacing=args.ring_spacing,
     )
     records = script.map_cases(args, work, cases, line)
     if records is None:
@@ -350,6 +382,11 @@ def main(argv: list[str] | None = None) -> int:
         + (", with flying pixels at depth edges" if args.flying else "")
         + (", depths exactly on the shells" if args.on_shells else "")
         + (f", in {args.rings} lidar rings" if args.rings else "")
+        + (
+            f", in lidar rings {args.ring_spacing:g} deg apart, the sensors moved level"
+            if args.ring_spacing
+            else ""
+        )
         + (", each cloud in its camera's frame" if args.sensor_frames else "")
         + (f", averaged on voxels of {args.average:g} steps" if args.average else "")
     )

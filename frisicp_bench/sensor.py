@@ -17,7 +17,8 @@ whatever the scene's units.
 
 What a sensor at a place keeps of the points (a :data:`Sight`): :func:`visible`, the front
 surface only (a z-buffer), optionally with the flying pixels of depth edges; :func:`ring_sampled`,
-a spinning lidar's rings instead of a camera's raster.
+a spinning lidar's rings instead of a camera's raster, spread over each view; :func:`fixed_rings`,
+rings at a real lidar's fixed elevations.
 """
 
 from __future__ import annotations
@@ -141,12 +142,33 @@ def ring_sampled(points: FloatArray, camera: FloatArray, channels: int) -> Float
     spread evenly over the points' elevations (about the frame's z axis), each keeping the
     points within :data:`BEAM` of the beams' spacing of its own elevation, so the cloud comes
     as rings, dense along them and sparse across."""
-    offsets = points - camera
-    elevation = np.arcsin(np.clip(offsets[:, 2] / np.linalg.norm(offsets, axis=1), -1.0, 1.0))
+    elevation = _elevations(points, camera)
     low, high = float(elevation.min()), float(elevation.max())
-    spacing = (high - low) / max(channels - 1, 1)
-    beam = np.clip(np.round((elevation - low) / max(spacing, 1e-12)), 0, channels - 1)
-    kept: FloatArray = points[np.abs(elevation - (low + beam * spacing)) <= BEAM * spacing]
+    return _on_beams(points, elevation, low, (high - low) / max(channels - 1, 1))
+
+
+def fixed_rings(points: FloatArray, camera: FloatArray, spacing: float) -> FloatArray:
+    """The points a spinning lidar at ``camera`` measures whose beams stand at fixed elevations,
+    the multiples of ``spacing`` (radians) about the frame's z axis, as a real lidar's do: every
+    frame of it has its rings on the same cones about the sensor (:func:`ring_sampled` spreads
+    its beams over each view instead). Each beam keeps the points within :data:`BEAM` of the
+    spacing of its elevation."""
+    return _on_beams(points, _elevations(points, camera), 0.0, spacing)
+
+
+def _elevations(points: FloatArray, camera: FloatArray) -> FloatArray:
+    """Each point's elevation seen from ``camera``, about the frame's z axis (radians)."""
+    offsets = points - camera
+    elevation: FloatArray = np.arcsin(np.clip(offsets[:, 2] / np.linalg.norm(offsets, axis=1), -1.0, 1.0))
+    return elevation
+
+
+def _on_beams(points: FloatArray, elevation: FloatArray, first: float, spacing: float) -> FloatArray:
+    """The ``points`` whose ``elevation`` lies within :data:`BEAM` of ``spacing`` of a beam's, the
+    beams at ``first`` + k ``spacing``."""
+    spacing = max(spacing, 1e-12)
+    beam = np.round((elevation - first) / spacing)
+    kept: FloatArray = points[np.abs(elevation - (first + beam * spacing)) <= BEAM * spacing]
     return kept
 
 
@@ -168,6 +190,7 @@ def sensed_frames_case(
     rng: np.random.Generator,
     sight: Sight | None = None,
     on_shells: bool = False,
+    level: bool = False,
 ) -> SceneCase:
     """Two overlapping depth frames: boxes of 40 % of the scene, ``shift`` of the box's width apart,
     each re-sampled from its own half of the scene's points and seen by its own camera (the second
@@ -175,13 +198,17 @@ def sensed_frames_case(
     ``step`` as shares of the scene's diagonal); the data moved by a small motion (up to 5
     degrees, 1-5 % scale drift), as :func:`frisicp_bench.scenes.frames_case` does. With
     ``sight`` each camera keeps only what that says it measures (:func:`visible`,
-    :func:`ring_sampled`); ``on_shells`` as :func:`depth_sensor` takes it."""
+    :func:`ring_sampled`); ``on_shells`` as :func:`depth_sensor` takes it. ``level``: the shift
+    lies across the frame's z axis, the axis of a lidar's rings (a vehicle driving on: rings on
+    the ground and on walls along the way can fall onto the other frame's)."""
     diagonal = model_size(scene)
     first = scene[rng.integers(scene.shape[0])]
     halves = rng.random(scene.shape[0]) < 0.5
     view = box_crop(scene[halves], 0.4, rng, first)
     width = float(np.ptp(view, axis=0).max())
     direction = rng.normal(size=3)
+    if level:
+        direction[2] = 0.0
     offset = shift * width * direction / np.linalg.norm(direction)
     other = box_crop(scene[~halves], 0.4, rng, first + offset)
     camera = camera_facing(view, rng)

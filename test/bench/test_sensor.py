@@ -4,7 +4,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from frisicp_bench.sensor import depth_sensor, ring_sampled, sensed_crop_case, sensed_frames_case, visible
+from frisicp_bench.sensor import (
+    depth_sensor,
+    fixed_rings,
+    ring_sampled,
+    sensed_crop_case,
+    sensed_frames_case,
+    visible,
+)
 
 
 def _wall(rng: np.random.Generator) -> np.ndarray:
@@ -123,6 +130,35 @@ def test_a_lidar_keeps_thin_rings_evenly_spread_over_the_elevations() -> None:
     assert set(beam.astype(int)) == set(range(8))
     assert np.abs(elevation - (full.min() + beam * spacing)).max() <= 0.1 * spacing + 1e-12
     assert 0.1 < rings.shape[0] / wall.shape[0] < 0.3
+
+
+def test_a_real_lidars_rings_stand_at_the_same_elevations_wherever_it_stands() -> None:
+    """Beams 2 degrees apart: from two places at one height the rings lie on the same cones
+    (multiples of the spacing), each within a tenth of it."""
+    rng = np.random.default_rng(6)
+    wall = np.column_stack(
+        [np.full(20000, 4.0), rng.uniform(-2.0, 2.0, 20000), rng.uniform(-1.0, 1.0, 20000)]
+    )
+    spacing = np.radians(2.0)
+    for camera in (np.zeros(3), np.array([0.5, 0.7, 0.0])):
+        rings = fixed_rings(wall, camera, spacing)
+        offsets = rings - camera
+        elevation = np.arcsin(offsets[:, 2] / np.linalg.norm(offsets, axis=1))
+        beam = np.round(elevation / spacing)
+        assert np.abs(elevation - beam * spacing).max() <= 0.1 * spacing + 1e-12
+        assert len(set(beam.astype(int))) >= 12  # about +-14 degrees of wall: 13-15 rings
+        assert 0.1 < rings.shape[0] / wall.shape[0] < 0.3
+
+
+def test_level_frames_move_the_second_sensor_across_the_rings_axis_only() -> None:
+    rng = np.random.default_rng(7)
+    scene = np.concatenate([_wall(rng), _wall(rng) * [1.0, 1.0, -1.0] + [0.0, 0.0, 3.5]])
+    for level in (False, True):
+        case = sensed_frames_case(scene, "walls", 0.0, 0.3, 0.0, np.random.default_rng(8), level=level)
+        assert case.truth is not None and case.sensors[0] is not None and case.sensors[1] is not None
+        offset = case.sensors[1] - case.truth.apply(case.sensors[0][None])[0]
+        assert np.linalg.norm(offset) > 0.01
+        assert (abs(offset[2]) < 1e-9 * np.linalg.norm(offset)) == level
 
 
 def test_flying_pixels_lie_between_the_fronts_at_a_depth_edge() -> None:
