@@ -28,8 +28,8 @@ from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
 LOGS = ROOT / "build" / "bench-smoke"
-# Minutes each with --quick on the 2-core VM (2026-12-06: 120, 89, 59, 57, 53 and 44 s of 623 s
-# in all): started first.
+# The longest with --quick on the 2-core VM, one at a time (2026-12-06: 120, 89, 59, 57, 53 and 44 s of
+# 623 s in all): started first.
 LONGEST_FIRST = (
     "cluster_throughput",
     "partial_overlap",
@@ -55,9 +55,9 @@ def scripts(folder: Path) -> list[Path]:
     return sorted(found, key=lambda path: (rank.get(path.stem, len(rank)), path.stem))
 
 
-def run(script: Path) -> Outcome:
-    """``script --quick`` on one OpenMP thread, its output into its log."""
-    log = LOGS / f"{script.stem}.log"
+def run(script: Path, logs: Path) -> Outcome:
+    """``script --quick`` on one OpenMP thread, its output into its log in ``logs``."""
+    log = logs / f"{script.stem}.log"
     env = dict(os.environ, OMP_NUM_THREADS="1")
     start = time.monotonic()
     with log.open("w") as out:
@@ -83,15 +83,21 @@ def report(outcome: Outcome) -> None:
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--jobs", type=int, default=2, help="scripts at a time (default 2)")
+    parser.add_argument(
+        "--scripts", type=Path, default=ROOT / "benchmarks", help="their folder (default benchmarks/)"
+    )
+    parser.add_argument(
+        "--logs", type=Path, default=LOGS, help="where the logs go (default build/bench-smoke/)"
+    )
     args = parser.parse_args(argv)
     if args.jobs < 1:
         parser.error("--jobs must be at least 1")
-    LOGS.mkdir(parents=True, exist_ok=True)
+    args.logs.mkdir(parents=True, exist_ok=True)
     start = time.monotonic()
     failed = []
     with ThreadPoolExecutor(max_workers=args.jobs) as pool:
         # Reported as each finishes: a broken script shows up at once, not after the others.
-        futures = [pool.submit(run, script) for script in scripts(ROOT / "benchmarks")]
+        futures = [pool.submit(run, script, args.logs) for script in scripts(args.scripts)]
         for future in as_completed(futures):
             outcome = future.result()
             report(outcome)
