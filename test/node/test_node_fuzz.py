@@ -1,5 +1,5 @@
 """Fuzz: a live node fed >= 1,000 hostile PointCloud2 messages of every known class (as data and
-as model), interleaved with valid pairs. Seeded and bounded (about 3.5 min on the 2-core VM; a
+as model), interleaved with valid pairs. Seeded and bounded (3.8 min on the 2-core VM; a
 cloud of another shape costs a cold global search, 3 s, most of it). 2,100 messages, as until
 2026-12-06, took 7 of CI's 30 minutes; `make fuzz` sends 2,000 to the console-script node.
 
