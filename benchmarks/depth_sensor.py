@@ -13,7 +13,8 @@ capped at 10,000 random points (the node's cap):
   of the paper's 15 scales, onto the scene as it is (:func:`frisicp_bench.sensor.sensed_crop_case`).
 
 The sensor: Gaussian noise along the ray of 0.1 % of the scene's diagonal at the median range
-(a Kinect v1 at 2 m: about 6 mm, a tenth of a per cent of a 6 m room's diagonal), and depth
+(a Kinect v1 at 2 m: about 6 mm, a tenth of a per cent of a 6 m room's diagonal; ``--noise``
+another share, e.g. a stereo camera's larger noise), and depth
 steps of 0.5, 1 or 2 % of it there (``--steps``), both growing with the range squared. The
 scenes: the development ones (rs1, the bunny, the dragon) and three held-out clouds (the chef
 figure, the second dragon sampling, a real bunny scan); the method was never looked at on this
@@ -114,11 +115,12 @@ def score(
     on_shells: bool = False,
     sensor_frames: bool = False,
     ring_spacing: float = 0.0,
+    noise: float = NOISE,
 ) -> dict[str, Any]:
     """Build, register (cold and from the truth) and score one case, deterministic in its key and
     ``draw``: (suite, scene, depth step, shift or share, repeat); ``occlusion``, ``flying``,
-    ``on_shells``, ``rings``, ``ring_spacing`` (degrees), ``sensor_frames`` and ``average`` as
-    the options of the same names (module doc)."""
+    ``on_shells``, ``rings``, ``ring_spacing`` (degrees), ``sensor_frames``, ``average`` and
+    ``noise`` as the options of the same names (module doc)."""
     suite, scene_name, step, size, repeat = key
     salt = f"{suite}/{scene_name}/{step}/{size}/{repeat}" + (f"/draw {draw}" if draw else "")
     rng = np.random.default_rng(zlib.crc32(salt.encode()))
@@ -133,11 +135,11 @@ def score(
     name = Path(scene_name).stem
     if suite == "frames":
         case = sensed_frames_case(
-            scene, name, step, size, NOISE, rng, sight, on_shells, level=ring_spacing > 0
+            scene, name, step, size, noise, rng, sight, on_shells, level=ring_spacing > 0
         )
     else:
         case = sensed_crop_case(
-            scene, name, size, float(rng.choice(PAPER_SCALES)), step, NOISE, rng, sight, on_shells
+            scene, name, size, float(rng.choice(PAPER_SCALES)), step, noise, rng, sight, on_shells
         )
     if sensor_frames:
         case = case.in_sensor_frames()
@@ -331,7 +333,16 @@ def main(argv: list[str] | None = None) -> int:
         metavar="DEG",
         help="a lidar's rings at fixed elevations DEG apart, the frames' sensors moved level (default 0: off)",
     )
+    command.add_argument(
+        "--noise",
+        type=float,
+        default=NOISE,
+        metavar="SHARE",
+        help="noise along the rays at the median range, a share of the scene's diagonal (default %(default)s)",
+    )
     args = script.parse(command, argv)
+    if not (np.isfinite(args.noise) and 0.0 <= args.noise < 1.0):
+        command.error("--noise must be a share of the diagonal in [0, 1)")
     if args.flying and not args.occlusion:
         command.error("--flying needs --occlusion (flying pixels lie at the edges it finds)")
     if args.rings < 0 or args.rings == 1:
@@ -372,6 +383,7 @@ def main(argv: list[str] | None = None) -> int:
         on_shells=args.on_shells,
         sensor_frames=args.sensor_frames,
         ring_spacing=args.ring_spacing,
+        noise=args.noise,
     )
     records = script.map_cases(args, work, cases, line)
     if records is None:
@@ -389,6 +401,7 @@ def main(argv: list[str] | None = None) -> int:
         )
         + (", each cloud in its camera's frame" if args.sensor_frames else "")
         + (f", averaged on voxels of {args.average:g} steps" if args.average else "")
+        + (f", noise {100 * args.noise:g} % of the diagonal" if args.noise != NOISE else "")
     )
     write_report(
         args.out, title, script.command_line(args), summary(records, args.draw), table(records), records
