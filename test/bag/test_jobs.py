@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import multiprocessing
 import os
 import signal
 import threading
 import time
+from concurrent.futures.process import _ExecutorManagerThread
+
+import numpy as np
 
 from frisicp_ros.bag import jobs
 
@@ -49,3 +53,22 @@ def test_workers_ignore_a_ctrl_c_that_came_while_they_started():
 def _signal_then_square(value: int) -> int:
     os.kill(os.getpid(), signal.SIGINT)  # to itself: ignored
     return value * value
+
+
+def test_stopping_early_leaves_no_thread_of_the_pool_for_the_exit_to_wait_for():
+    """Closing the generator early kills the workers and returns only once the pool's manager
+    thread has ended: interpreter exit joins that thread without a bound (`frisicp bag --jobs 2`
+    once hung there after three Ctrl-C). Large inputs keep the call queue's feeder writing."""
+    inputs = [np.full((40_000, 3), float(k)) for k in range(12)]
+    mapped = jobs.ordered_map(_first_value, inputs, jobs=2)
+    first_input, first_value = next(mapped)
+    assert first_value == 0.0 and first_input is inputs[0]
+    mapped.close()
+    pool_threads = [t for t in threading.enumerate() if isinstance(t, _ExecutorManagerThread)]
+    assert pool_threads == []
+    assert multiprocessing.active_children() == []
+
+
+def _first_value(points: np.ndarray) -> float:
+    time.sleep(0.05)
+    return float(points[0, 0])
