@@ -45,10 +45,18 @@ DEPTHS = ("range", "x", "y", "z")
 # steps than the smallest are buried in any sensor's noise; coarser than the largest are not
 # steps but the scene's own layout.
 SMALLEST_STEP, LARGEST_STEP = 0.002, 0.1
-# A comb of shells: its coherence at least MIN_COHERENCE (random depths: about 1 / sqrt(n)),
-# more than twice the coherence a quarter of its frequency to either side, across at least
-# MIN_SHELLS shells of the central depths.
-MIN_COHERENCE = 0.3
+# A comb of shells: its coherence at least MIN_COHERENCE and SIGNIFICANCE / sqrt(n), more than
+# twice the coherence a quarter of its frequency to either side, across at least MIN_SHELLS
+# shells of the central depths. Shells blurred by noise of sigma keep exp(-2 pi^2 sigma^2 / du^2),
+# 0.2 at sigma = 0.29 du, and blurred shells still lock: at a floor of 0.3,
+# benchmarks/depth_sensor.py's stereo-like noise (0.25 du) hid the shells of 33 of 36 frame pairs
+# at 2 % steps, and one pair was registered terrace onto terrace, 1.1 % off in scale, reliable.
+# Lower floors meet real surfaces: objects with no quantised depth seen from in front reach
+# 0.10-0.19 (a decimated bunny the most; test_depth_steps.py). Random depths' coherence at one
+# frequency exceeds r with probability exp(-n r^2): at SIGNIFICANCE = 5, exp(-25), so none of a
+# band's ten thousand frequencies does but in one cloud in millions.
+MIN_COHERENCE = 0.2
+SIGNIFICANCE = 5.0
 MIN_SHELLS = 4.0
 # A step at least this share of the cloud's diagonal is coarse: benchmarks/depth_sensor.py
 # found frames 40 % of a scene wide locking terrace onto terrace at steps of 1.5 % of the
@@ -59,7 +67,7 @@ COARSE_SHARE = 0.01
 # shells: exp(-2 pi^2 sigma^2 / du^2) against its fourth power; see _fundamental).
 _HARMONIC = 0.8
 # Points looked at (evenly strided: the answer does not depend on a seed) at most and at least
-# (fewer: random depths' coherence nears MIN_COHERENCE), and histogram bins per smallest step and
+# (fewer: a comb hardly stands out of random depths' coherence), and histogram bins per smallest step and
 # at most.
 MAX_POINTS, MIN_POINTS = 20_000, 500
 _BINS_PER_STEP = 8
@@ -156,7 +164,8 @@ def _shells(depth: str, depths: FloatArray, diagonal: float) -> DepthSteps | Non
     padded = 4 * bins
     coherence = np.abs(np.fft.rfft(counts.astype(np.float64), n=padded)) / inverse.size
     frequency = np.arange(coherence.size) / (padded * width)
-    for peak in _peaks(coherence, frequency, 1.0 / coarsest, 1.0 / finest):
+    floor = max(MIN_COHERENCE, SIGNIFICANCE / np.sqrt(inverse.size))
+    for peak in _peaks(coherence, frequency, 1.0 / coarsest, 1.0 / finest, floor):
         if span * frequency[peak] < MIN_SHELLS:
             continue
         fundamental = _fundamental(coherence, frequency, peak, 1.0 / coarsest)
@@ -181,16 +190,18 @@ def _fundamental(coherence: FloatArray, frequency: FloatArray, peak: int, lowest
     return peak
 
 
-def _peaks(coherence: FloatArray, frequency: FloatArray, lowest: float, highest: float) -> list[int]:
+def _peaks(
+    coherence: FloatArray, frequency: FloatArray, lowest: float, highest: float, floor: float
+) -> list[int]:
     """The narrow peaks of ``coherence`` between the frequencies ``lowest`` and ``highest``, lowest
-    first: local maxima of at least :data:`MIN_COHERENCE` and of half the band's largest, more
+    first: local maxima of at least ``floor`` and of half the band's largest, more
     than twice the largest coherence within a quarter of their frequency on either side (a peak's
     harmonics a quarter away fail this, as do the broad peaks of a few surfaces)."""
     band = np.flatnonzero((frequency >= lowest) & (frequency <= highest))
     band = band[(band > 0) & (band < coherence.size - 1)]
     if band.size == 0:
         return []
-    threshold = max(MIN_COHERENCE, 0.5 * float(coherence[band].max()))
+    threshold = max(floor, 0.5 * float(coherence[band].max()))
     tall = band[
         (coherence[band] >= threshold)
         & (coherence[band] >= coherence[band - 1])
