@@ -91,11 +91,11 @@ def _stop_now(executor: ProcessPoolExecutor) -> None:
     ``shutdown(wait=False)`` returns with that thread still running (it ends once it sees the
     dead workers, after flushing the call queue's feeder thread), so stopping early used to leave
     the wait for it to the exit. Once in CI, `frisicp bag --jobs 2` given three Ctrl-C printed its
-    summary and never exited; not reproduced since (a one-off stress of 60 runs, not kept), so
-    its cause is not known. Both unbounded waits after the summary are
-    bounded here: the manager thread is joined with a timeout, and the call queue's join is
-    cancelled first (nothing still in it will ever be read, and a feeder blocked on a pipe of
-    killed readers must not hold the exit).
+    summary and never exited; not reproduced since (a one-off stress of 100 such runs, not
+    kept), so its cause is not known. Both unbounded waits at exit are bounded here: the manager
+    thread is joined with a timeout, and the call queue's join is cancelled first (nothing still
+    in it will ever be read, and a feeder blocked on a pipe of killed readers must not hold the
+    exit).
     """
     # ProcessPoolExecutor has no public kill before Python 3.14 (terminate_workers, which does
     # what this does up to the kill); these attributes are what it uses. ``_processes`` is the
