@@ -92,10 +92,10 @@ def _stop_now(executor: ProcessPoolExecutor) -> None:
     dead workers, after flushing the call queue's feeder thread), so stopping early used to leave
     the wait for it to the exit. Once in CI, `frisicp bag --jobs 2` given three Ctrl-C printed its
     summary and never exited; not reproduced since (a one-off stress of 100 such runs, not
-    kept), so its cause is not known. Both unbounded waits at exit are bounded here: the manager
-    thread is joined with a timeout, and the call queue's join is cancelled first (nothing still
-    in it will ever be read, and a feeder blocked on a pipe of killed readers must not hold the
-    exit).
+    kept), so its cause is not known. Here the manager thread is waited for up to
+    :data:`_JOIN_SEC` (were it still alive after that, the exit would wait for it as before),
+    and the call queue's join is cancelled first (nothing still in it will ever be read, and a
+    feeder blocked on a pipe of killed readers must not hold the exit).
     """
     # ProcessPoolExecutor has no public kill before Python 3.14 (terminate_workers, which does
     # what this does up to the kill); these attributes are what it uses. ``_processes`` is the
