@@ -59,6 +59,7 @@ from .fit import Fit
 from .global_search import feature_starts
 from .hypotheses import beyond_guess, covariance_scale_bounds, initial_hypotheses
 from .levels import Level, Pairs, Pyramid, level_motion
+from .near_probes import near_rival, worth_probing
 from .points import as_point_set, centroid, check_same_dimension, rms_radius, spread
 from .poses import PoseBatch
 from .prepared import PreparedModel
@@ -540,7 +541,8 @@ def _register(
     fit: Fit | None = None
     if bidirectional:
         fit = final.fit(sim)
-    verdict = judge(
+    judged = functools.partial(
+        judge,
         sim,
         converged=reports[-1].converged,
         rms=rms,
@@ -551,11 +553,35 @@ def _register(
         spreads=(spread(data_set), model.spread),
         fit=fit,
         competitor=competitor,
-        uncertainty=uncertainty,
         tolerance=config.tolerance,
         model_diagonal=model.diagonal,
     )
+    verdict = judged(uncertainty=uncertainty)
     reliable, reason = verdict.reliable, verdict.reason
+    if (
+        reliable
+        and polishing
+        and uncertainty is not None
+        and worth_probing(uncertainty, config.tolerance)
+        and config.initial is None
+        and config.probe
+        and not solver.deadline.passed()
+    ):
+        # A reliable cold answer: is its scale pinned to the tolerance (frisicp_core.near_probes)?
+        rival = near_rival(
+            sim,
+            rms,
+            sets,
+            data_centroid,
+            config.tolerance,
+            model.diagonal,
+            step_tolerance=level_motion(config, last, last) * model_radius,
+            noise_floor=config.criteria.noise_floor,
+        )
+        if rival is not None:
+            uncertainty = uncertainty.including(rival.offset)
+            verdict = judged(uncertainty=uncertainty)
+            reliable, reason = verdict.reliable, "; ".join(filter(None, (rival.describe(), verdict.reason)))
     budget = solver.deadline.reason
     if budget:
         reliable, reason = False, "; ".join(filter(None, (budget, reason)))

@@ -113,6 +113,15 @@ class Uncertainty:
         covariance: FloatArray = carry @ self.covariance @ carry.T
         return Uncertainty(covariance, q, self.widening)
 
+    def including(self, offset: FloatArray) -> Uncertainty:
+        """This uncertainty with a second answer ``offset`` away (a perturbation in this
+        covariance's parameters, about the same centre) counted as one standard deviation along
+        it: covariance + offset offset^T. Where the data fit two poses as well
+        (:mod:`frisicp_core.near_probes`), the truth may be either, or anywhere between: one
+        sigma spanning the two says so, where the covariance at one of them cannot."""
+        d = np.asarray(offset, dtype=np.float64).reshape(-1)
+        return Uncertainty(self.covariance + np.outer(d, d), self.centre, self.widening)
+
     @classmethod
     def undetermined(
         cls,
