@@ -59,7 +59,7 @@ from .fit import Fit
 from .global_search import feature_starts
 from .hypotheses import beyond_guess, covariance_scale_bounds, initial_hypotheses
 from .levels import Level, Pairs, Pyramid, level_motion
-from .near_probes import near_rival, worth_probing
+from .near_probes import near_rival, near_starts
 from .points import as_point_set, centroid, check_same_dimension, rms_radius, spread
 from .poses import PoseBatch
 from .prepared import PreparedModel
@@ -562,15 +562,15 @@ def _register(
         reliable
         and polishing
         and uncertainty is not None
-        and worth_probing(uncertainty, config.tolerance)
         and config.initial is None
         and config.probe
         and not solver.deadline.passed()
     ):
-        # A reliable cold answer: is its scale pinned to the tolerance (frisicp_core.near_probes)?
+        # A reliable cold answer: is it pinned to the tolerance (frisicp_core.near_probes)?
         rival = near_rival(
             sim,
             rms,
+            near_starts(sim, uncertainty, config.tolerance),
             sets,
             data_centroid,
             config.tolerance,

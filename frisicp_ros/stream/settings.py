@@ -466,9 +466,10 @@ OPTIONS: tuple[Option, ...] = (
     core_option(
         "probe",
         "probe the answer for competing poses (ICP restarted from poses turned, scaled and shifted"
-        " around it, and from its twins turned half a turn about the clouds' principal axes): an"
-        " answer another pose fits about as well is not reliable, a clearly better one replaces"
-        " it; false = faster, ambiguity unchecked",
+        " around it, and from its twins turned half a turn about the clouds' principal axes; a"
+        " reliable answer also polished again 1.5 tolerances off in scale and turn): an answer"
+        " another pose fits about as well is not reliable, a clearly better one replaces it;"
+        " false = faster, ambiguity unchecked",
     ),
     core_option(
         "polish",

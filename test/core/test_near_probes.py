@@ -14,7 +14,7 @@ from frisicp_bench import scenes
 from frisicp_bench.metrics import pose_errors
 from frisicp_bench.sensor import sensed_frames_case, visible
 from frisicp_core import NearestNeighbors, RegistrationConfig, Similarity, Tolerance, downsample, register
-from frisicp_core.near_probes import near_rival, worth_probing
+from frisicp_core.near_probes import NEAR_PROBE, near_rival, near_starts
 from frisicp_core.refine import ModelNormals, Sets, polish
 from frisicp_core.uncertainty import Uncertainty
 
@@ -25,13 +25,19 @@ def _sets(data: np.ndarray, model: np.ndarray) -> Sets:
 
 
 def _rival(data: np.ndarray, model: np.ndarray, pose: Similarity, tolerance: Tolerance):  # type: ignore[no-untyped-def]
+    """The polished answer from ``pose``, and its near rival from starts in scale and about the
+    z axis (the uncertainty of a flat, level patch: scale and that turn unknown)."""
     sets = _sets(data, model)
     centroid = data.mean(axis=0)
     answer = polish(pose, sets, centroid)
     diagonal = float(np.linalg.norm(model.max(axis=0) - model.min(axis=0)))
+    loose = Uncertainty(
+        np.diag([0.01, 1e-8, 1e-8, 0.01, 1e-8, 1e-8, 1e-8]), answer.similarity.apply(centroid)
+    )
     rival = near_rival(
         answer.similarity,
         answer.pairs.rms()[0],
+        near_starts(answer.similarity, loose, tolerance),
         sets,
         centroid,
         tolerance,
@@ -61,26 +67,45 @@ def test_a_patch_of_a_flat_floor_fits_as_well_a_tolerance_and_a_half_larger() ->
     assert "second minimum" in rival.describe()
 
 
-def test_a_curved_surface_pulls_both_probes_back_to_the_answer() -> None:
-    """Half a noisy sphere against the whole: the curvature fixes the scale, both probes return
-    within the tolerance, and there is no rival."""
+def test_a_curved_surface_pulls_every_probe_back_to_the_answer() -> None:
+    """Half a noisy ellipsoid (axes 1, 0.7, 0.4) against the whole: its curvature fixes the
+    scale and every turn, each probe returns within the tolerance, and there is no rival. (Half
+    a sphere would not do: it fits the whole turned about any axis.)"""
     rng = np.random.default_rng(12)
-    sphere = rng.normal(size=(20000, 3))
-    sphere /= np.linalg.norm(sphere, axis=1, keepdims=True)
-    model = sphere + 0.002 * rng.normal(size=sphere.shape)
-    data = sphere[sphere[:, 2] > 0] + 0.002 * rng.normal(size=(int(np.sum(sphere[:, 2] > 0)), 3))
+    ellipsoid = rng.normal(size=(20000, 3))
+    ellipsoid *= np.array([1.0, 0.7, 0.4]) / np.linalg.norm(ellipsoid, axis=1, keepdims=True)
+    model = ellipsoid + 0.002 * rng.normal(size=ellipsoid.shape)
+    upper = ellipsoid[ellipsoid[:, 0] > 0]
+    data = upper + 0.002 * rng.normal(size=upper.shape)
 
     _, rival = _rival(data, model, Similarity.identity(3), Tolerance())
 
     assert rival is None
 
 
-def test_only_an_answer_whose_scale_spans_a_share_of_the_tolerance_is_probed() -> None:
-    tolerance = Tolerance(scale=0.01)
-    sigma = np.diag([0.001**2, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6, 1e-6])
-    assert worth_probing(Uncertainty(sigma, np.zeros(3)), tolerance)  # 3 sigma = 0.3 %
-    sigma[0, 0] = 0.0005**2  # 3 sigma = 0.15 %
-    assert not worth_probing(Uncertainty(sigma, np.zeros(3)), tolerance)
+def test_a_component_is_probed_where_three_sigmas_span_a_quarter_of_its_tolerance() -> None:
+    tolerance = Tolerance(scale=0.01, rotation_deg=1.0)
+    answer = Similarity(2.0, np.eye(3), np.array([1.0, 0.0, 0.0]))
+    centre = np.array([1.0, 2.0, 3.0])
+    # 3 sigma: 0.3 % in scale, 0.15 degrees about y, far less about x and z.
+    covariance = np.diag([0.001**2, 1e-12, np.radians(0.05) ** 2, 1e-12, 1e-6, 1e-6, 1e-6])
+
+    starts = near_starts(answer, Uncertainty(covariance, centre), tolerance)
+
+    assert [round(start.scale / answer.scale, 6) for start in starts] == [
+        round(np.exp(-NEAR_PROBE * 0.01), 6),
+        round(np.exp(NEAR_PROBE * 0.01), 6),
+    ]
+    # Every start leaves where the answer puts the centre's preimage in place.
+    for start in starts:
+        assert np.allclose(start.apply(answer.inverse().apply(centre[None])), centre)
+    covariance[2, 2] = np.radians(0.1) ** 2  # 3 sigma 0.3 degrees about y: probed there too
+    turned = near_starts(answer, Uncertainty(covariance, centre), tolerance)[2:]
+    assert len(turned) == 2
+    for start in turned:
+        relative = start.rotation @ answer.rotation.T
+        assert np.isclose(np.degrees(start.rotation_angle()), NEAR_PROBE * 1.0)
+        assert np.allclose(np.abs(relative[:, 1]), [0.0, 1.0, 0.0])  # about y
 
 
 def test_a_second_minimum_counts_as_one_sigma_along_the_way_to_it() -> None:
