@@ -94,7 +94,15 @@ def main(argv: list[str] | None = None) -> int:
                     result = register(moved, model, RegistrationConfig())
                     errors = pose_errors(result.similarity, g.inverse(), moved, model_size(model))
                     records.append(
-                        case_record(errors, result, shape=name, share=share, direction=direction, scale=scale)
+                        case_record(
+                            errors,
+                            result,
+                            shape=name,
+                            share=share,
+                            direction=direction,
+                            scale=scale,
+                            reason=result.reason,
+                        )
                     )
                     print(
                         f"{name:8s} {share:.0%} {direction} s={scale:<4} {'ok  ' if errors.success else 'FAIL'} "

@@ -50,7 +50,7 @@ from .uncertainty import SIGMAS, Uncertainty
 
 # A component is probed only where 3 of its sigmas reach this share of its tolerance (module doc).
 PROBED_FROM = 0.25
-# How far the probes start from the answer, in scale tolerances either way: past the tolerance,
+# How far the probes start from the answer, in tolerances of what they move, either way: past it,
 # so a start the data pull back must come back across it, and near enough that the polish's
 # steps reach it (they are linearised about the start).
 NEAR_PROBE = 1.5
@@ -79,10 +79,11 @@ class NearRival:
 
 def near_starts(answer: Similarity, uncertainty: Uncertainty, tolerance: Tolerance) -> list[Similarity]:
     """The near probes' starts (module doc), about where ``answer`` puts the data's centroid
-    (``uncertainty.centre``, the covariance's centre): its scale times exp(+-:data:`NEAR_PROBE` tolerances), where
-    :data:`~frisicp_core.uncertainty.SIGMAS` sigmas of the scale span :data:`PROBED_FROM` of its
-    tolerance; turned +-:data:`NEAR_PROBE` tolerances about the rotation's worst-determined axis
-    (the rotation block's leading eigenvector), where the rotation's do."""
+    (``uncertainty.centre``, the covariance's centre): its scale times exp(+-:data:`NEAR_PROBE`
+    tolerances), where :data:`~frisicp_core.uncertainty.SIGMAS` sigmas of the scale span
+    :data:`PROBED_FROM` of its tolerance; turned +-:data:`NEAR_PROBE` tolerances about the
+    rotation's worst-determined axis (the rotation block's leading eigenvector), where the
+    rotation's do."""
     m, r = answer.dim, vector_size(answer.dim)
     moves: list[FloatArray] = []
     if SIGMAS * uncertainty.scale >= PROBED_FROM * tolerance.scale:
