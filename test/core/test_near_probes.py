@@ -1,6 +1,6 @@
-"""A reliable cold answer's scale is probed a tolerance and a half either way
-(frisicp_core.near_probes): a second minimum that fits as well past the tolerance means the scale
-is not determined to it, and the answer is not reliable."""
+"""A reliable cold answer is probed a tolerance and a half either way in scale and about its
+worst-determined axis (frisicp_core.near_probes): a second minimum that fits as well past the
+tolerance means the pose is not determined to it, and the answer is not reliable."""
 
 from __future__ import annotations
 
