@@ -52,9 +52,9 @@ SMALLEST_STEP, LARGEST_STEP = 0.002, 0.1
 # benchmarks/depth_sensor.py's stereo-like noise (0.25 du) hid the shells of 33 of 36 frame pairs
 # at 2 % steps, and one pair was registered terrace onto terrace, 1.1 % off in scale, reliable.
 # Lower floors meet real surfaces: objects with no quantised depth seen from in front reach
-# 0.10-0.19 (a decimated bunny the most; a one-off measurement, and test_depth_steps.py). Random depths' coherence at one
-# frequency exceeds r with probability exp(-n r^2): at SIGNIFICANCE = 5, exp(-25), so none of a
-# band's ten thousand frequencies does but in one cloud in millions.
+# 0.10-0.19 (a decimated bunny the most; a one-off measurement, and test_depth_steps.py). Random
+# depths' coherence at one frequency exceeds r with probability exp(-n r^2): at SIGNIFICANCE = 5,
+# exp(-25), so none of a band's ten thousand frequencies does but in one cloud in millions.
 MIN_COHERENCE = 0.2
 SIGNIFICANCE = 5.0
 MIN_SHELLS = 4.0

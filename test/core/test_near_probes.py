@@ -14,7 +14,7 @@ from frisicp_bench import scenes
 from frisicp_bench.metrics import pose_errors
 from frisicp_bench.sensor import sensed_frames_case, visible
 from frisicp_core import NearestNeighbors, RegistrationConfig, Similarity, Tolerance, downsample, register
-from frisicp_core.near_probes import NEAR_PROBE, near_rival, near_starts
+from frisicp_core.near_probes import NEAR_PROBE, NearRival, near_rival, near_starts
 from frisicp_core.refine import ModelNormals, Sets, polish
 from frisicp_core.uncertainty import Uncertainty
 
@@ -24,7 +24,9 @@ def _sets(data: np.ndarray, model: np.ndarray) -> Sets:
     return Sets(data_tree, model_tree, data_tree.spacing(), model_tree.spacing(), ModelNormals(model_tree))
 
 
-def _rival(data: np.ndarray, model: np.ndarray, pose: Similarity, tolerance: Tolerance):  # type: ignore[no-untyped-def]
+def _rival(
+    data: np.ndarray, model: np.ndarray, pose: Similarity, tolerance: Tolerance
+) -> tuple[Similarity, NearRival | None]:
     """The polished answer from ``pose``, and its near rival from starts in scale and about the
     z axis (the uncertainty of a flat, level patch: scale and that turn unknown)."""
     sets = _sets(data, model)
