@@ -269,6 +269,15 @@ def summary(records: list[dict[str, Any]], draw: int) -> str:
         f" {sum(r['success'] and r['reliable'] for r in averaged)} of them reliable,"
         f" {sum(r['reliable'] and not r['success'] for r in averaged)} wrong and reliable."
     )
+    sized = [r for r in records if r["reliable"] and r["three_sigma"]]
+    within = [
+        sum(r[error] <= r["three_sigma"][k] for r in sized)
+        for k, error in enumerate(("rotation_deg", "scale_error", "translation_error"))
+    ]
+    text += (
+        f" Of the {len(sized)} reliable results, {within[0]}, {within[1]} and {within[2]} lie within"
+        " their 3 sigma in rotation, scale and translation."
+    )
     if wrong:
         text += " The wrong and reliable ones (3 sigma: rotation, scale, translation / diagonal):\n"
         for r in wrong:
