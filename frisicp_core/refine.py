@@ -932,6 +932,10 @@ def _half_estimate(sim: Similarity, half: Sets, centroid: FloatArray) -> Similar
         polished = polish(pose, half, centroid, steps=1, final_pass=False)
         if polished.ran_off:
             return None
+        if polished.similarity is pose:
+            # Settled at the noise floor without moving: re-paired at the same pose, every
+            # further step is this one again.
+            break
         pose = polished.similarity
     return pose
 
