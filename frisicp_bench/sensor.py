@@ -54,17 +54,22 @@ def depth_sensor(
     step: float,
     rng: np.random.Generator,
     on_shells: bool = False,
+    noise_rng: np.random.Generator | None = None,
 ) -> FloatArray:
     """``points`` as a depth camera at ``camera`` reports them: each range quantised in disparity,
     the depth step ``step`` at the median range (0: none), then Gaussian noise along the ray,
     sigma ``noise`` at the median range, both growing with the range squared. With
     ``on_shells`` the noise comes first and the quantisation last, as in a camera, whose
-    reported depths lie exactly on its shells."""
+    reported depths lie exactly on its shells. With ``noise_rng`` the noise is drawn from that
+    stream, and ``rng`` advanced as without it: the same case, another noise draw."""
     offsets = points - camera
     ranges = np.linalg.norm(offsets, axis=1)
     rays = offsets / ranges[:, None]
     median = float(np.median(ranges))
-    noisy = rng.normal(size=ranges.shape) * noise * (ranges / median) ** 2
+    draws = rng.normal(size=ranges.shape)
+    if noise_rng is not None:
+        draws = noise_rng.normal(size=ranges.shape)
+    noisy = draws * noise * (ranges / median) ** 2
     reported = ranges + noisy if on_shells else ranges
     if step > 0:
         # Disparity 1 / z in steps of `quantum`: depth steps are z^2 * quantum apart, `step` at the
@@ -191,6 +196,8 @@ def sensed_frames_case(
     sight: Sight | None = None,
     on_shells: bool = False,
     level: bool = False,
+    noise_rng: np.random.Generator | None = None,
+    noisy: tuple[str, ...] = ("data", "model"),
 ) -> SceneCase:
     """Two overlapping depth frames: boxes of 40 % of the scene, ``shift`` of the box's width apart,
     each re-sampled from its own half of the scene's points and seen by its own camera (the second
@@ -200,7 +207,9 @@ def sensed_frames_case(
     ``sight`` each camera keeps only what that says it measures (:func:`visible`,
     :func:`ring_sampled`); ``on_shells`` as :func:`depth_sensor` takes it. ``level``: the shift
     lies across the frame's z axis, the axis of a lidar's rings (a vehicle driving on: rings on
-    the ground and on walls along the way can fall onto the other frame's)."""
+    the ground and on walls along the way can fall onto the other frame's). ``noise_rng`` draws
+    the noise from a stream of its own (:func:`depth_sensor`) and ``noisy`` names the clouds that
+    get it ("data", "model"): the same frames, other noise (``benchmarks/noise_bias.py``)."""
     diagonal = model_size(scene)
     first = scene[rng.integers(scene.shape[0])]
     halves = rng.random(scene.shape[0]) < 0.5
@@ -213,14 +222,20 @@ def sensed_frames_case(
     other = box_crop(scene[~halves], 0.4, rng, first + offset)
     camera = camera_facing(view, rng)
 
-    def sensed(points: FloatArray, at: FloatArray) -> FloatArray:
+    def sensed(points: FloatArray, at: FloatArray, cloud: str) -> FloatArray:
         kept = resampled(points, rng.uniform(0.5, 1.0), 0.0, rng)
         return depth_sensor(
-            kept if sight is None else sight(kept, at), at, noise * diagonal, step * diagonal, rng, on_shells
+            kept if sight is None else sight(kept, at),
+            at,
+            noise * diagonal if cloud in noisy else 0.0,
+            step * diagonal,
+            rng,
+            on_shells,
+            noise_rng,
         )
 
-    data = sensed(view, camera)
-    model = sensed(other, camera + offset)
+    data = sensed(view, camera, "data")
+    model = sensed(other, camera + offset, "model")
     scale = float(np.exp(rng.choice((-1.0, 1.0)) * rng.uniform(0.01, 0.05)))
     moved = protocol_similarity(model, scale, 5.0, rng)
     return SceneCase(

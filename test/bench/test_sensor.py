@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from frisicp_bench.scenes import SceneCase
 from frisicp_bench.sensor import (
     depth_sensor,
     fixed_rings,
@@ -54,6 +55,43 @@ def test_two_sensed_frames_carry_their_truth_and_the_data_is_moved_by_it() -> No
     distances = np.min(np.linalg.norm(landed[:200, None, :] - scene[None], axis=2), axis=1)
     assert distances.max() < 1e-9
     assert abs(np.log(case.truth.scale)) <= 0.05 + 1e-12
+
+
+def test_a_noise_stream_of_its_own_redraws_the_noise_and_keeps_the_frames() -> None:
+    # benchmarks/noise_bias.py: the same points, cameras and truth, another noise draw, on the
+    # clouds it names.
+    scene = np.concatenate(
+        [_wall(np.random.default_rng(3)), _wall(np.random.default_rng(4)) * [1.0, 1.0, -1.0]]
+    )
+
+    def frames(noise: float, draw: int, noisy: tuple[str, ...] = ("data", "model")) -> SceneCase:
+        return sensed_frames_case(
+            scene,
+            "walls",
+            0.0,
+            0.1,
+            noise,
+            np.random.default_rng(5),
+            noise_rng=np.random.default_rng(draw),
+            noisy=noisy,
+        )
+
+    clean, one, other = frames(0.0, 0), frames(0.01, 0), frames(0.01, 1)
+    for case in (one, other):
+        assert case.truth is not None and clean.truth is not None
+        # The same motion; placed about the model's centroid, which the noise moves a little.
+        assert case.truth.scale == clean.truth.scale
+        assert np.array_equal(case.truth.rotation, clean.truth.rotation)
+        assert np.linalg.norm(case.truth.translation - clean.truth.translation) < 0.05
+    for case in (one, other):
+        assert case.data.shape == clean.data.shape and case.model.shape == clean.model.shape
+    moved = [np.linalg.norm(case.model - clean.model, axis=1) for case in (one, other)]
+    assert 0.01 < moved[0].mean() < 0.1 and 0.01 < moved[1].mean() < 0.1
+    assert not np.allclose(moved[0], moved[1])
+    data_only = frames(0.01, 0, ("data",))
+    assert np.array_equal(data_only.model, clean.model)
+    assert data_only.truth is not None and one.truth is not None
+    assert np.allclose(data_only.truth.apply(data_only.data), one.truth.apply(one.data))
 
 
 def test_each_sensed_cloud_says_where_its_camera_stood_in_its_own_coordinates() -> None:
