@@ -1,18 +1,26 @@
 """The split halves of the uncertainty (frisicp_core.refine) pair through the whole cloud's
-nearest neighbours: each half's partner is exactly the one a tree of the half would find."""
+nearest neighbours: each half's partner is exactly the one a tree of the half would find. Where
+the verdict hangs on the sigmas they size, more splits size them."""
+
+from typing import Any
 
 import numpy as np
 
-from frisicp_core import NearestNeighbors, Similarity, axis_angle_rotation
+from frisicp_core import NearestNeighbors, Similarity, axis_angle_rotation, refine
 from frisicp_core.refine import (
     CANDIDATES,
+    MORE_SPLITS,
+    SPLITS,
     Candidates,
     Half,
     ModelNormals,
     Sets,
     coincident_points,
     half_samples,
+    polish,
+    uncertainty_of,
 )
+from frisicp_core.uncertainty import SIGMAS, Uncertainty
 
 
 def test_a_halfs_partner_from_the_candidates_is_its_nearest_point_in_the_half() -> None:
@@ -119,3 +127,54 @@ def test_a_half_moved_to_another_pose_pairs_each_row_with_its_nearest_in_the_hal
             assert np.array_equal(mine_partner, fresh_partner)
             assert np.allclose(mine_sq, fresh_sq)
             assert np.array_equal(mine[1][~used], old[1][~used])
+
+
+def _noisy_surface_pair(seed: int) -> tuple[Sets, Similarity, np.ndarray]:
+    """Two noisy samplings of a bumpy patch, the data moved off by a known similarity: the sets,
+    that similarity's inverse (the answer) and the data's centroid."""
+    rng = np.random.default_rng(seed)
+
+    def sampled(count: int) -> np.ndarray:
+        x, y = rng.uniform(-1.0, 1.0, count), rng.uniform(-1.0, 1.0, count)
+        surface = np.stack([x, y, 0.3 * np.sin(2.0 * x) * np.cos(3.0 * y)], axis=1)
+        return surface + rng.normal(scale=0.01, size=surface.shape)
+
+    moved = Similarity(0.8, axis_angle_rotation([1.0, 0.0, 1.0], 0.3), [0.2, 0.1, 0.0])
+    data, model = moved.apply(sampled(4000)), sampled(5000)
+    return _sets(data, model), moved.inverse(), data.mean(axis=0)
+
+
+def _split_uncertainty(
+    sets: Sets, answer: Similarity, centroid: np.ndarray, seed: int, limits: tuple[float, float, float] | None
+) -> tuple[Uncertainty, int]:
+    """uncertainty_of at ``answer`` with the halves' random stream ``seed``, and how many halves
+    were refined."""
+    refined = 0
+    original = refine._half_estimate
+
+    def counted(*args: Any) -> Similarity | None:
+        nonlocal refined
+        refined += 1
+        return original(*args)
+
+    pairs = polish(answer, sets, centroid).pairs
+    refine._half_estimate = counted
+    try:
+        result = uncertainty_of(answer, pairs, sets, centroid, np.random.default_rng(seed), limits=limits)
+    finally:
+        refine._half_estimate = original
+    return result, refined
+
+
+def test_where_the_verdict_hangs_on_the_sigmas_more_splits_size_them() -> None:
+    sets, answer, centroid = _noisy_surface_pair(7)
+    plain, halves = _split_uncertainty(sets, answer, centroid, 0, None)
+    assert halves == 2 * SPLITS
+    # Tolerances three sigmas of the scale would just meet: the verdict hangs on them.
+    at_the_edge = (1e6, SIGMAS * plain.scale, 1e6)
+    _, halves = _split_uncertainty(sets, answer, centroid, 0, at_the_edge)
+    assert halves == 2 * (SPLITS + MORE_SPLITS)
+    # Tolerances far wider than every sigma: three splits decide it as well.
+    far = (1e6, 1e6, 1e6)
+    _, halves = _split_uncertainty(sets, answer, centroid, 0, far)
+    assert halves == 2 * SPLITS
