@@ -109,8 +109,16 @@ def test_what_the_voxel_grid_moves_widens_the_uncertainty_and_can_refuse():
     added = averaged.covariance - direct.covariance
     eigenvalues = np.linalg.eigvalsh(added)
     assert eigenvalues[-1] > 0 and np.all(eigenvalues[:-1] < 1e-12 * eigenvalues[-1])  # one direction
-    # A scale tolerance the direct answer just meets, the widened one does not.
-    tight = replace(loose, tolerance=replace(loose.tolerance, scale=3.0001 * direct.uncertainty.scale))
+    # A scale tolerance the direct answer just meets, the widened one does not. A tolerance
+    # that near its sigmas has them sized by more split halves (frisicp_core.refine.BORDERLINE):
+    # the direct answer's sigma as judged by a tolerance in that band.
+    near = replace(loose, tolerance=replace(loose.tolerance, scale=3.0 * direct.uncertainty.scale))
+    sized = register(
+        voxel_centroids(data, data_edge),
+        prepared.averaged(model_edge),
+        replace(near, average_depth_steps=False),
+    )
+    tight = replace(loose, tolerance=replace(loose.tolerance, scale=3.0001 * sized.uncertainty.scale))
     assert register(
         voxel_centroids(data, data_edge),
         prepared.averaged(model_edge),
