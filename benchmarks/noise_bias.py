@@ -17,10 +17,9 @@ diagonal at the median range; ``depth_sensor.py`` uses 0.001, 0.003, 0.005 and 0
 - the median stated sigma of the scale, and how many draws lie within 3 of their own sigmas;
 - at the highest noise, the same with the noise on one cloud only (data or model).
 
-A bias that grows faster than the spread (as the noise squared against the noise) is an error
-the split halves share, so the covariance does not see it: the wrong-and-reliable pair and the
-3-sigma misses of ``depth_sensor.py --noise 0.007`` are of that kind (README, "Depth-sensor
-noise").
+A bias that grows faster than the spread is an error the split halves share, which the
+covariance sees only through its widening factors (README, "Depth-sensor noise": the 3-sigma
+misses of ``depth_sensor.py --noise 0.007``).
 
 Usage: python benchmarks/noise_bias.py [--jobs 2] [--draws 6] [--data DIR] [--out docs/noise_bias.md]
        python benchmarks/noise_bias.py --quick   # one frame pair, two levels, two draws -> build/
