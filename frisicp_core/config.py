@@ -91,7 +91,10 @@ class Tolerance:
     passes the other checks of :mod:`frisicp_core.verdict`); two poses farther apart than these
     in any component are distinct answers (an ambiguity when both fit about as well).
     ``rotation_deg`` in degrees, ``scale`` relative, ``translation`` a share of the model's
-    bounding-box diagonal (of where the data's centroid lands).
+    bounding-box diagonal (of where the data's centroid lands). The stated sigmas near these
+    (three of them within 0.5-3 tolerances) are sized by more split halves
+    (:data:`frisicp_core.refine.BORDERLINE`), so a result's covariance may differ a little with
+    the tolerance it is judged by.
     """
 
     rotation_deg: float = 1.0
