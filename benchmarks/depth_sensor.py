@@ -86,7 +86,13 @@ from trustworthy import from_truth, pose_determined
 from frisicp_bench import script
 from frisicp_bench.cases import PAPER_SCALES
 from frisicp_bench.metrics import model_size, pose_errors
-from frisicp_bench.report import case_record, write_report, wrong_but_reliable
+from frisicp_bench.report import (
+    case_record,
+    three_sigma_bounds,
+    within_three_sigma,
+    write_report,
+    wrong_but_reliable,
+)
 from frisicp_bench.scenes import object_cloud
 from frisicp_bench.sensor import fixed_rings, ring_sampled, sensed_crop_case, sensed_frames_case, visible
 from frisicp_core import downsample, register, voxel_centroids
@@ -157,7 +163,6 @@ def score(
     errors = pose_errors(result.similarity, case.truth, data, case.model_diagonal)
     warm = from_truth(data, model, case.truth)
     from_the_truth = pose_errors(warm.similarity, case.truth, data, case.model_diagonal)
-    sigmas = result.uncertainty
     # What the node and frisicp bag see: each cloud in its sensor's frame, about the origin.
     found = [
         None if sensor is None else find_depth_steps(cloud - sensor)
@@ -174,9 +179,7 @@ def score(
         data_depth_step=None if found[0] is None else found[0].share,
         model_depth_step=None if found[1] is None else found[1].share,
         averaged_by_core=result.depth_averaged is not None,
-        three_sigma=None
-        if sigmas is None
-        else [3 * sigmas.rotation_deg, 3 * sigmas.scale, 3 * sigmas.translation / case.model_diagonal],
+        three_sigma=three_sigma_bounds(result, case.model_diagonal),
         truth_start={"right": from_the_truth.success, "reliable": warm.reliable},
     )
 
@@ -270,10 +273,8 @@ def summary(records: list[dict[str, Any]], draw: int) -> str:
         f" {sum(r['reliable'] and not r['success'] for r in averaged)} wrong and reliable."
     )
     sized = [r for r in records if r["reliable"] and r["three_sigma"]]
-    within = [
-        sum(r[error] <= r["three_sigma"][k] for r in sized)
-        for k, error in enumerate(("rotation_deg", "scale_error", "translation_error"))
-    ]
+    flags = [within_three_sigma(r) for r in sized]
+    within = [sum(flag[k] for flag in flags) for k in range(3)]
     text += (
         f" Of the {len(sized)} reliable results, {within[0]}, {within[1]} and {within[2]} lie within"
         " their 3 sigma in rotation, scale and translation."

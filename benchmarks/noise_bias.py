@@ -43,7 +43,7 @@ import numpy as np
 
 from frisicp_bench import script
 from frisicp_bench.metrics import pose_errors
-from frisicp_bench.report import write_report
+from frisicp_bench.report import case_record, three_sigma_bounds, within_three_sigma, write_report
 from frisicp_bench.scenes import object_cloud
 from frisicp_bench.sensor import sensed_frames_case, visible
 from frisicp_core import downsample, register
@@ -94,28 +94,18 @@ def measure(task: tuple[str, float, float, float, tuple[str, ...], int], data_di
     assert case.truth is not None
     data, model = downsample(case.data, CAP, rng), downsample(case.model, CAP, rng)
     result = register(data, model)
-    errors = pose_errors(result.similarity, case.truth, data, case.model_diagonal)
-    sigmas = result.uncertainty
-    three = (
-        None
-        if sigmas is None
-        else [3 * sigmas.rotation_deg, 3 * sigmas.scale, 3 * sigmas.translation / case.model_diagonal]
+    return case_record(
+        pose_errors(result.similarity, case.truth, data, case.model_diagonal),
+        result,
+        scene=scene_name,
+        step=step,
+        shift=shift,
+        noise=noise,
+        noisy="+".join(noisy),
+        draw=draw,
+        scale_signed=float(np.log(result.similarity.scale / case.truth.scale)),
+        three_sigma=three_sigma_bounds(result, case.model_diagonal),
     )
-    return {
-        "scene": scene_name,
-        "step": step,
-        "shift": shift,
-        "noise": noise,
-        "noisy": "+".join(noisy),
-        "draw": draw,
-        "scale_signed": float(np.log(result.similarity.scale / case.truth.scale)),
-        "rotation_deg": errors.rotation_deg,
-        "scale_error": errors.scale,
-        "translation_error": errors.translation,
-        "three_sigma": three,
-        "success": errors.success,
-        "reliable": result.reliable,
-    }
 
 
 def summarise(records: list[dict[str, Any]]) -> tuple[list[str], list[list[object]]]:
@@ -159,20 +149,14 @@ def summarise(records: list[dict[str, Any]]) -> tuple[list[str], list[list[objec
                 "-" if np.isnan(spread) else f"{100 * spread:.3f} %",
                 "-" if np.isnan(spread) or spread == 0 else f"{abs(bias) / spread:.1f}",
                 f"{100 * sigma:.3f} %",
-                f"{sum(e['scale_error'] <= e['three_sigma'][1] for e in sized)} of {len(sized)}",
-                f"{sum(_within(e) for e in sized)} of {len(sized)}",
+                f"{sum(within_three_sigma(e)[1] for e in sized)} of {len(sized)}",
+                f"{sum(all(within_three_sigma(e)) for e in sized)} of {len(sized)}",
                 sum(e["success"] for e in group),
                 sum(e["reliable"] for e in group),
                 sum(e["reliable"] and not e["success"] for e in group),
             ]
         )
     return header, rows
-
-
-def _within(entry: dict[str, Any]) -> bool:
-    three = entry["three_sigma"]
-    errors = (entry["rotation_deg"], entry["scale_error"], entry["translation_error"])
-    return all(error <= bound for error, bound in zip(errors, three, strict=True))
 
 
 def main(argv: list[str] | None = None) -> int:

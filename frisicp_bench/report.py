@@ -43,6 +43,26 @@ def provenance(command: str) -> str:
     )
 
 
+def three_sigma_bounds(result: RegistrationResult, diagonal: float) -> list[float] | None:
+    """Three of the result's sigmas, as a case record keeps them (``three_sigma``): rotation in
+    degrees, relative scale, translation as a share of ``diagonal``; None without an uncertainty."""
+    sigmas = result.uncertainty
+    if sigmas is None:
+        return None
+    return [3 * sigmas.rotation_deg, 3 * sigmas.scale, 3 * sigmas.translation / diagonal]
+
+
+def within_three_sigma(record: dict[str, Any]) -> tuple[bool, bool, bool]:
+    """Whether a case record's (:func:`case_record`) errors lie within its ``three_sigma``
+    (:func:`three_sigma_bounds`): rotation, scale, translation."""
+    rotation, scale, translation = record["three_sigma"]
+    return (
+        record["rotation_deg"] <= rotation,
+        record["scale_error"] <= scale,
+        record["translation_error"] <= translation,
+    )
+
+
 def wrong_but_reliable(records: Sequence[dict[str, Any]]) -> int:
     """How many of the cases (:func:`case_record`) failed although the verdict called them reliable."""
     return sum(bool(r["reliable"]) and not r["success"] for r in records)
