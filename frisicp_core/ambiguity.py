@@ -160,7 +160,8 @@ def separation(
     """How far apart two poses are, in tolerances: the largest of the rotation between them over
     ``tolerance.rotation_deg``, their log scale ratio over ``tolerance.scale`` and the distance
     between where they put the data point ``centre`` over ``tolerance.translation * diagonal``."""
-    turn = np.degrees(rotation_angle(a.rotation @ b.rotation.T)) / tolerance.rotation_deg
-    scale = abs(np.log(a.scale / b.scale)) / tolerance.scale
-    shift = float(np.linalg.norm(a.apply(centre) - b.apply(centre))) / (tolerance.translation * diagonal)
+    turn_limit, scale_limit, shift_limit = tolerance.limits(diagonal)
+    turn = np.degrees(rotation_angle(a.rotation @ b.rotation.T)) / turn_limit
+    scale = abs(np.log(a.scale / b.scale)) / scale_limit
+    shift = float(np.linalg.norm(a.apply(centre) - b.apply(centre))) / shift_limit
     return float(max(turn, scale, shift))

@@ -108,6 +108,11 @@ class Tolerance:
                 math.isfinite(value) and value > 0, f"tolerance {name} must be finite and > 0, got {value}"
             )
 
+    def limits(self, diagonal: float) -> tuple[float, float, float]:
+        """What three sigmas of a result are held against (rotation in degrees, relative scale,
+        translation in model units) for a model whose bounding-box diagonal is ``diagonal``."""
+        return (self.rotation_deg, self.scale, self.translation * diagonal)
+
 
 @dataclass(frozen=True)
 class ConvergenceCriteria:

@@ -895,8 +895,8 @@ def uncertainty_of(
     (``benchmarks/verdict_seeds.py``: one pose, six seeds), and a pose a tolerance off could be
     called reliable, or a right one refused, by the draw. Where three sigmas of a block lie
     within :data:`BORDERLINE` times its tolerance (``limits``: rotation in degrees, relative
-    scale, translation in model units, as :func:`frisicp_core.verdict.uncertain_components`
-    compares them), so that the verdict hangs on them, :data:`MORE_SPLITS` more splits join the
+    scale, translation in model units, :meth:`frisicp_core.config.Tolerance.limits`, as
+    :func:`frisicp_core.verdict.uncertain_components` compares them), so that the verdict hangs on them, :data:`MORE_SPLITS` more splits join the
     three and the spreads are the mean over all: four times the degrees of freedom. Elsewhere (a
     pose determined many times over, or clearly not) three decide the verdict as well, at a
     quarter of the cost. Measured (``benchmarks/depth_sensor.py --occlusion --sensor-frames

@@ -526,11 +526,7 @@ def _register(
             data_centroid,
             np.random.default_rng([config.seed, _UNCERTAINTY_STREAM]),
             widening,
-            limits=(
-                config.tolerance.rotation_deg,
-                config.tolerance.scale,
-                config.tolerance.translation * model.diagonal,
-            ),
+            limits=config.tolerance.limits(model.diagonal),
         )
         # A competitor found by ICP is judged against the polished answer, polished itself: two
         # ICP runs stopped at their noise floor may lie a tolerance apart in one basin.

@@ -140,10 +140,11 @@ def within_tolerance(uncertainty: Uncertainty, tolerance: Tolerance, diagonal: f
 def uncertain_components(uncertainty: Uncertainty, tolerance: Tolerance, diagonal: float) -> list[str]:
     """What :func:`judge` says of each component whose :data:`SIGMAS` sigmas exceed its
     tolerance (none: an empty list)."""
+    rotation, scale, translation = tolerance.limits(diagonal)
     checks = (
-        ("rotation", uncertainty.rotation_deg, tolerance.rotation_deg, "deg"),
-        ("scale", uncertainty.scale * 100.0, tolerance.scale * 100.0, "%"),
-        ("translation", uncertainty.translation, tolerance.translation * diagonal, ""),
+        ("rotation", uncertainty.rotation_deg, rotation, "deg"),
+        ("scale", uncertainty.scale * 100.0, scale * 100.0, "%"),
+        ("translation", uncertainty.translation, translation, ""),
     )
     return [
         f"{UNDETERMINED}: {SIGMAS:g} sigma of the {name} is {SIGMAS * sigma:.3g}{unit}"
