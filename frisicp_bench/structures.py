@@ -15,6 +15,12 @@ metre), in metres:
 
 The exact symmetries are the point: a crop of such a scene fits it as well at its twin's place,
 so the honest verdict is "ambiguous" (or "not determined"), whichever pose is returned.
+
+One kind has none (:data:`ROOMS`): *furnished*, a room of random size (4-8 x 3-6 x 2.4-3 m,
+floor, walls and ceiling) with five to nine boxes of furniture (0.4-2 m wide, 0.4-1.2 m deep,
+0.4-2 m high) at random places and headings, a new layout for every case: a room the method was
+never looked at, where a crop that holds furniture determines its pose and a right answer can be
+reliable.
 """
 
 from __future__ import annotations
@@ -29,6 +35,7 @@ from .metrics import model_size
 from .scenes import NOISE, SceneCase, box_crop, protocol_similarity, resampled
 
 KINDS = ("corridor", "hall", "tables", "stairs", "shelves", "triangle", "pavilion", "corner")
+ROOMS = ("furnished",)
 DENSITY = 1500.0
 _HALL = (6.0, 4.0, 2.5)
 
@@ -160,6 +167,38 @@ SCENES: dict[str, Callable[[float, np.random.Generator], FloatArray]] = {
 }
 
 
+def furnished_room(layout: np.random.Generator) -> Callable[[float, np.random.Generator], FloatArray]:
+    """A sampler of one furnished room (module doc) whose layout ``layout`` draws now: every
+    sampling of it shows the same room."""
+    size = (layout.uniform(4.0, 8.0), layout.uniform(3.0, 6.0), layout.uniform(2.4, 3.0))
+    pieces = []
+    for _ in range(int(layout.integers(5, 10))):
+        width, depth, height = layout.uniform(0.4, 2.0), layout.uniform(0.4, 1.2), layout.uniform(0.4, 2.0)
+        heading = layout.uniform(0.0, np.pi)
+        # Inside the walls whatever the heading: the centre keeps half the diagonal from them.
+        reach = 0.5 * np.hypot(width, depth)
+        centre = (layout.uniform(reach, size[0] - reach), layout.uniform(reach, size[1] - reach))
+        pieces.append(((width, depth, height), heading, centre))
+
+    def scene(density: float, rng: np.random.Generator) -> FloatArray:
+        parts = [box_surface((0.0, 0.0, 0.0), size, density, rng)]
+        for (width, depth, height), heading, (x, y) in pieces:
+            box = box_surface(
+                (-width / 2, -depth / 2, 0.0), (width / 2, depth / 2, height), density, rng, bottom=False
+            )
+            turn = np.array(
+                [
+                    [np.cos(heading), -np.sin(heading), 0.0],
+                    [np.sin(heading), np.cos(heading), 0.0],
+                    [0.0, 0.0, 1.0],
+                ]
+            )
+            parts.append(box @ turn.T + np.array([x, y, 0.0]))
+        return np.concatenate(parts)
+
+    return scene
+
+
 def structured_crop_case(
     kind: str, share: float, scale: float, rng: np.random.Generator, *, reverse: bool = False
 ) -> SceneCase:
@@ -170,7 +209,9 @@ def structured_crop_case(
     kept); both get Gaussian noise of :data:`~frisicp_bench.scenes.NOISE` of the scene's
     diagonal; the data are moved by ``frisicp bench``'s protocol (``scale``, a turn of up to 30
     degrees, a shift of a tenth of the model's size)."""
-    first, second = structured_scene(kind, rng), structured_scene(kind, rng)
+    # A furnished room's layout is drawn once: both samplings show the same room.
+    sample = furnished_room(rng) if kind in ROOMS else SCENES[kind]
+    first, second = sample(DENSITY, rng), sample(DENSITY, rng)
     noise = NOISE * model_size(first)
     crop = resampled(box_crop(second, share, rng), rng.uniform(0.3, 1.0), noise, rng)
     whole = resampled(first, 1.0, noise, rng)
@@ -182,5 +223,7 @@ def structured_crop_case(
 
 
 def structured_scene(kind: str, rng: np.random.Generator, density: float = DENSITY) -> FloatArray:
-    """The scene ``kind`` (one of :data:`KINDS`, module doc), sampled with ``rng``."""
-    return SCENES[kind](density, rng)
+    """The scene ``kind`` (one of :data:`KINDS` or :data:`ROOMS`, module doc), sampled with
+    ``rng`` (a furnished room's layout drawn from it first)."""
+    sample = furnished_room(rng) if kind in ROOMS else SCENES[kind]
+    return sample(density, rng)
