@@ -28,7 +28,10 @@ crops, noise, scales and turns that the method was never looked at on.
 a room of random size with furniture at random places and headings, a new layout for every
 case, none of them looked at while the method was built): there a crop holding furniture
 determines its pose, and right answers may be reliable; wrong and reliable must still be 0.
-``--repeats N`` gives each kind, share and direction N cases (default 3).
+``--repeats N`` gives each kind, share and direction N cases (default 3). ``--truth-starts``
+also registers every case from the truth (``trustworthy.truth_start``): where that start is right
+and reliable the data determine the pose to the tolerance, and a refusal of the cold answer
+there is the search's miss; the table then counts the successes among those cases.
 
 Usage: python benchmarks/structured_scenes.py [--jobs 2] [--draw N] [--cap N] [--out docs/structured_scenes.md]
        python benchmarks/structured_scenes.py --kinds furnished --repeats 6 [--draw N] --out docs/furnished_rooms.md
@@ -48,6 +51,7 @@ from collections import Counter
 from typing import Any
 
 import numpy as np
+from trustworthy import truth_start
 
 from frisicp_bench import script
 from frisicp_bench.metrics import pose_errors
@@ -64,9 +68,11 @@ REPEATS = 3
 CAP = 10_000
 
 
-def score(key: tuple[str, float, str, int], draw: int, cap: int = CAP) -> dict[str, Any]:
+def score(
+    key: tuple[str, float, str, int], draw: int, cap: int = CAP, truth_starts: bool = False
+) -> dict[str, Any]:
     """Build, register and score one case (deterministic in its key and ``draw``), both clouds
-    capped at ``cap`` points."""
+    capped at ``cap`` points; with ``truth_starts`` also from the truth."""
     kind, share, direction, repeat = key
     salt = f"{kind}/{share}/{direction}/{repeat}" + (f"/draw {draw}" if draw else "")
     rng = np.random.default_rng(zlib.crc32(salt.encode()))
@@ -77,6 +83,9 @@ def score(key: tuple[str, float, str, int], draw: int, cap: int = CAP) -> dict[s
     data, model = downsample(built.data, cap, rng), downsample(built.model, cap, rng)
     result = register(data, model, RegistrationConfig())
     errors = pose_errors(result.similarity, built.truth, data, built.model_diagonal)
+    extra = (
+        {"truth_start": truth_start(data, model, built.truth, built.model_diagonal)} if truth_starts else {}
+    )
     return case_record(
         errors,
         result,
@@ -86,6 +95,7 @@ def score(key: tuple[str, float, str, int], draw: int, cap: int = CAP) -> dict[s
         case=built.name,
         reason=result.reason,
         competitor_ratio=None if result.competitor is None else result.competitor.merit_ratio,
+        **extra,
     )
 
 
@@ -128,6 +138,11 @@ def main(argv: list[str] | None = None) -> int:
         default=REPEATS,
         help=f"cases per kind, share and direction (default {REPEATS})",
     )
+    command.add_argument(
+        "--truth-starts",
+        action="store_true",
+        help="also register every case from the truth (determined or not)",
+    )
     args = script.parse(command, argv)
     if args.cap < 1:
         command.error("--cap must be at least 1")
@@ -147,7 +162,8 @@ def main(argv: list[str] | None = None) -> int:
             for share in SHARES
             for repeat in range(args.repeats)
         ]
-    records = script.map_cases(args, functools.partial(score, draw=args.draw, cap=args.cap), cases, line)
+    scored = functools.partial(score, draw=args.draw, cap=args.cap, truth_starts=args.truth_starts)
+    records = script.map_cases(args, scored, cases, line)
     assert records is not None  # synthetic: no data to miss
     rows = []
     for kind in dict.fromkeys(r["scene"] for r in records):
@@ -160,10 +176,15 @@ def main(argv: list[str] | None = None) -> int:
                 str(wrong_but_reliable(group)),
                 ", ".join(f"{n} {why}" for why, n in refused.most_common()) or "-",
             ]
+            if args.truth_starts:
+                determined = [r for r in group if r["truth_start"]["right"] and r["truth_start"]["reliable"]]
+                cells.append(f"{sum(r['success'] and r['reliable'] for r in determined)}/{len(determined)}")
         rows.append([kind, *cells])
     header = ["scene"]
     for direction in DIRECTIONS:
         header += [f"{direction}: right (reliable)", "wrong and reliable", "refused as"]
+        if args.truth_starts:
+            header.append("success where determined (truth start right, reliable)")
     summary = (
         f"**{wrong_but_reliable(records)} of {len(records)} results wrong and reliable**; "
         f"{sum(r['success'] for r in records)} right, {sum(r['success'] and r['reliable'] for r in records)} "
