@@ -34,7 +34,7 @@ and reliable the data determine the pose to the tolerance, and a refusal of the 
 there is the search's miss; the table then counts the successes among those cases.
 
 Usage: python benchmarks/structured_scenes.py [--jobs 2] [--draw N] [--cap N] [--out docs/structured_scenes.md]
-       python benchmarks/structured_scenes.py --kinds furnished --repeats 6 [--draw N] --out docs/furnished_rooms.md
+       python benchmarks/structured_scenes.py --kinds furnished --repeats 6 --truth-starts [--draw N] --out docs/furnished_rooms.md
        python benchmarks/structured_scenes.py --quick   # the tables hall's 50 % crop, both ways -> build/
 """
 
