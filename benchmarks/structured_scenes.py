@@ -51,7 +51,7 @@ from collections import Counter
 from typing import Any
 
 import numpy as np
-from trustworthy import truth_start
+from trustworthy import pose_determined, truth_start
 
 from frisicp_bench import script
 from frisicp_bench.metrics import pose_errors
@@ -177,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
                 ", ".join(f"{n} {why}" for why, n in refused.most_common()) or "-",
             ]
             if args.truth_starts:
-                determined = [r for r in group if r["truth_start"]["right"] and r["truth_start"]["reliable"]]
+                determined = [r for r in group if pose_determined(r)]
                 cells.append(f"{sum(r['success'] and r['reliable'] for r in determined)}/{len(determined)}")
         rows.append([kind, *cells])
     header = ["scene"]
