@@ -29,7 +29,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from frisicp_core import FloatArray
+from frisicp_core import FloatArray, axis_angle_rotation
 
 from .metrics import model_size
 from .scenes import NOISE, SceneCase, box_crop, protocol_similarity, resampled
@@ -186,13 +186,7 @@ def furnished_room(layout: np.random.Generator) -> Callable[[float, np.random.Ge
             box = box_surface(
                 (-width / 2, -depth / 2, 0.0), (width / 2, depth / 2, height), density, rng, bottom=False
             )
-            turn = np.array(
-                [
-                    [np.cos(heading), -np.sin(heading), 0.0],
-                    [np.sin(heading), np.cos(heading), 0.0],
-                    [0.0, 0.0, 1.0],
-                ]
-            )
+            turn = axis_angle_rotation((0.0, 0.0, 1.0), heading)
             parts.append(box @ turn.T + np.array([x, y, 0.0]))
         return np.concatenate(parts)
 
