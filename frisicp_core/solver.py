@@ -498,8 +498,8 @@ def compare_finalists(
     furnished room laid where it belongs (1 % near misses) and one laid half over the room both
     ways, which keeps 33-44 % near misses, passes the check, and had the lower merit where the
     search missed such crops (the synthetic rooms of benchmarks/structured_scenes.py
-    ``--kinds furnished``). Overruling
-    the objective takes a clear fit: a pose that merely passes the check may be another misfit.
+    ``--kinds furnished``). Overruling the objective takes a clear fit: a pose that merely
+    passes the check may be another misfit.
 
     With ``finish`` as well (the point-to-plane steps of :mod:`frisicp_core.refine` on this
     level's full trees): when no pose fits clearly, those that pass the check are finished and
