@@ -46,24 +46,20 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")  # before numpy and pykdtree load
 
 import functools
 import sys
-import zlib
 from collections import Counter
 from typing import Any
 
-import numpy as np
 from trustworthy import pose_determined, truth_start
 
 from frisicp_bench import script
 from frisicp_bench.metrics import pose_errors
 from frisicp_bench.report import case_record, write_report, wrong_but_reliable
-from frisicp_bench.structures import KINDS, ROOMS, structured_crop_case
-from frisicp_core import RegistrationConfig, downsample, register
+from frisicp_bench.structures import DIRECTIONS, KINDS, ROOMS, seeded_case
+from frisicp_core import RegistrationConfig, register
 
 TITLE = "Symmetric and repetitive scenes: crops both ways, default config, capped at {cap:,} points"
 ROOMS_TITLE = "Furnished rooms without symmetry: crops both ways, default config, capped at {cap:,} points"
 SHARES = (0.1, 0.3, 0.5)
-SCALES = (0.5, 0.8, 1.3, 2.0, 3.0)
-DIRECTIONS = ("crop onto scene", "scene onto crop")
 REPEATS = 3
 CAP = 10_000
 
@@ -74,13 +70,8 @@ def score(
     """Build, register and score one case (deterministic in its key and ``draw``), both clouds
     capped at ``cap`` points; with ``truth_starts`` also from the truth."""
     kind, share, direction, repeat = key
-    salt = f"{kind}/{share}/{direction}/{repeat}" + (f"/draw {draw}" if draw else "")
-    rng = np.random.default_rng(zlib.crc32(salt.encode()))
-    built = structured_crop_case(
-        kind, share, float(rng.choice(SCALES)), rng, reverse=direction == "scene onto crop"
-    )
+    built, data, model = seeded_case(kind, share, direction, repeat, draw, cap)
     assert built.truth is not None
-    data, model = downsample(built.data, cap, rng), downsample(built.model, cap, rng)
     result = register(data, model, RegistrationConfig())
     errors = pose_errors(result.similarity, built.truth, data, built.model_diagonal)
     extra = (

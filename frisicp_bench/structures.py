@@ -25,11 +25,12 @@ reliable.
 
 from __future__ import annotations
 
+import zlib
 from collections.abc import Callable
 
 import numpy as np
 
-from frisicp_core import FloatArray, axis_angle_rotation
+from frisicp_core import FloatArray, axis_angle_rotation, downsample
 
 from .metrics import model_size
 from .scenes import NOISE, SceneCase, box_crop, protocol_similarity, resampled
@@ -214,6 +215,26 @@ def structured_crop_case(
     suite = "scene onto crop" if reverse else "crop onto scene"
     name = f"{kind} {share:.0%} s={scale:.3g}"
     return SceneCase(name, suite, moved.apply(data), model, moved.inverse())
+
+
+# benchmarks/structured_scenes.py's cases: each a scale of these, registered both ways.
+SCALES = (0.5, 0.8, 1.3, 2.0, 3.0)
+DIRECTIONS = ("crop onto scene", "scene onto crop")
+
+
+def seeded_case(
+    kind: str, share: float, direction: str, repeat: int, draw: int, cap: int
+) -> tuple[SceneCase, FloatArray, FloatArray]:
+    """benchmarks/structured_scenes.py's case ``kind``/``share``/``direction``/``repeat`` of
+    ``--draw`` ``draw``: :func:`structured_crop_case` at a scale of :data:`SCALES`, all drawn
+    from a generator seeded by the key, and its data and model capped at ``cap`` random points
+    each (the same clouds in the script, in tests and in one-off diagnostics)."""
+    salt = f"{kind}/{share}/{direction}/{repeat}" + (f"/draw {draw}" if draw else "")
+    rng = np.random.default_rng(zlib.crc32(salt.encode()))
+    case = structured_crop_case(
+        kind, share, float(rng.choice(SCALES)), rng, reverse=direction == "scene onto crop"
+    )
+    return case, downsample(case.data, cap, rng), downsample(case.model, cap, rng)
 
 
 def structured_scene(kind: str, rng: np.random.Generator, density: float = DENSITY) -> FloatArray:

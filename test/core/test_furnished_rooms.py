@@ -10,13 +10,9 @@ measures them); the cases are that script's, built from its seeds.
 
 from __future__ import annotations
 
-import zlib
-
-import numpy as np
-
 from frisicp_bench.metrics import pose_errors
-from frisicp_bench.structures import structured_crop_case
-from frisicp_core import downsample, register
+from frisicp_bench.structures import seeded_case
+from frisicp_core import register
 from frisicp_core.verdict import CLEAR_NEAR_SHARE
 
 
@@ -26,11 +22,8 @@ def test_a_third_of_a_furnished_room_is_found_where_it_belongs_not_half_beside_i
     # fit check kept the lowest merit's place and rivalled clear fits, it came out 90 degrees
     # off with the scale 75 % off, refused as ambiguous: a rival at about the true scale (1.35)
     # matched its merit (ratio 0.991).
-    rng = np.random.default_rng(zlib.crc32(b"furnished/0.3/crop onto scene/1"))
-    scale = float(rng.choice((0.5, 0.8, 1.3, 2.0, 3.0)))
-    assert scale == 1.3
-    case = structured_crop_case("furnished", 0.3, scale, rng)
-    data, model = downsample(case.data, 10_000, rng), downsample(case.model, 10_000, rng)
+    case, data, model = seeded_case("furnished", 0.3, "crop onto scene", 1, draw=0, cap=10_000)
+    assert case.name == "furnished 30% s=1.3"
     result = register(data, model)
     assert case.truth is not None
     errors = pose_errors(result.similarity, case.truth, data, case.model_diagonal)
