@@ -806,8 +806,9 @@ def _probe(
     merit of right answers on 10-20 % crops once the descriptor search's agreement graph
     (:mod:`frisicp_core.compatibility`) put such poses among the runners-up, and a 30 % crop of
     a furnished room laid half over it both ways (33-44 % near misses) that of the crop laid
-    where it belongs (1 %). The screening's ``runners_up`` are run down too, and so is every one of the answer's ``twins``
-    (the half turns of the data and of the model, :func:`~frisicp_core.ambiguity.symmetric_starts`)
+    where it belongs (1 %). The screening's ``runners_up`` are run down too, and so is every one
+    of the answer's ``twins`` (the half turns of the data and of the model,
+    :func:`~frisicp_core.ambiguity.symmetric_starts`)
     whose merit where it starts is within :data:`_NOMINATE_TWIN` of the answer's, and not
     beyond an initial guess (:func:`~frisicp_core.hypotheses.beyond_guess`); a twin that comes
     out worse past its margin is judged again on the full sets (:func:`_second_look`). (Clouds that cover each other
