@@ -92,7 +92,7 @@ def _normals_within(
     ``reach`` (at most :data:`_NORMAL_NEIGHBOURS` nearest), as in Hoppe et al. 1992."""
     dist_sq, neighbours = tree.query_k(points, _NORMAL_NEIGHBOURS)
     weight = (dist_sq <= reach * reach).astype(np.float64)
-    patches = tree.points[neighbours]
+    patches = np.take(tree.points, neighbours, axis=0)
     count = np.maximum(weight.sum(axis=1), 1.0)
     mean = np.einsum("nk,nki->ni", weight, patches) / count[:, None]
     centred = (patches - mean[:, None, :]) * np.sqrt(weight)[:, :, None]
@@ -114,8 +114,8 @@ def _pair_histograms(
     """Per keypoint, the normalised histograms of its pairs' features (module doc)."""
     distance = np.sqrt(dist_sq)
     with np.errstate(invalid="ignore", divide="ignore"):
-        chord = (support[neighbours] - keys[:, None, :]) / distance[:, :, None]
-    other = normals[neighbours]
+        chord = (np.take(support, neighbours, axis=0) - keys[:, None, :]) / distance[:, :, None]
+    other = np.take(normals, neighbours, axis=0)
     along_key = np.abs(np.einsum("nkj,nj->nk", chord, key_normals))
     along_other = np.abs(np.einsum("nkj,nkj->nk", chord, other))
     between = np.abs(np.einsum("nkj,nj->nk", other, key_normals))
@@ -154,7 +154,9 @@ def _smoothed(keys: FloatArray, histograms: FloatArray, radius: float) -> FloatA
     distance = np.sqrt(dist_sq)
     weight = np.where((distance > 0) & (distance <= radius), 1.0 / np.maximum(distance, 1e-300), 0.0)
     total = weight.sum(axis=1, keepdims=True)
-    spread = np.einsum("nk,nkd->nd", weight, histograms[neighbours]) / np.maximum(total, 1e-300)
+    spread = np.einsum("nk,nkd->nd", weight, np.take(histograms, neighbours, axis=0)) / np.maximum(
+        total, 1e-300
+    )
     combined: FloatArray = histograms + np.where(total > 0, spread, 0.0)
     blocks = [(0, _ANGLE_BINS), (_ANGLE_BINS, 2 * _ANGLE_BINS), (2 * _ANGLE_BINS, 3 * _ANGLE_BINS)]
     blocks.append((3 * _ANGLE_BINS, combined.shape[1]))

@@ -65,10 +65,10 @@ class NeighbourLists:
         # time, over (rows, LISTED) planes (numpy is slow on a last axis of length 3).
         candidate_sq = np.zeros((rows.shape[0], listed))
         for axis, plane in enumerate(self._axes):
-            offset = (plane if everywhere else plane[rows]) - moved_rows[:, axis, None]
+            offset = (plane if everywhere else np.take(plane, rows, axis=0)) - moved_rows[:, axis, None]
             candidate_sq += offset * offset
         nearest = np.argsort(candidate_sq, axis=1, kind="stable")[:, :k]
-        candidates = self._index if everywhere else self._index[rows]
+        candidates = self._index if everywhere else np.take(self._index, rows, axis=0)
         found_sq = np.take_along_axis(candidate_sq, nearest, axis=1)
         found = np.take_along_axis(candidates, nearest, axis=1)
         if everywhere:
@@ -83,7 +83,5 @@ class NeighbourLists:
     def _searched(self, queries: FloatArray, k: int, listed: int) -> tuple[FloatArray, np.ndarray]:
         dist_sq, index = self.tree.query_k(queries, listed)
         self._reference, self._dist_sq, self._index = queries.copy(), dist_sq, index
-        self._axes = [
-            np.ascontiguousarray(self.tree.points[:, axis][index]) for axis in range(queries.shape[1])
-        ]
+        self._axes = [np.take(self.tree.points[:, axis], index) for axis in range(queries.shape[1])]
         return dist_sq[:, :k].copy(), index[:, :k].copy()

@@ -177,8 +177,8 @@ class ModelNormals:
     def surface(self, index: np.ndarray) -> tuple[FloatArray, FloatArray]:
         """The normals at the points ``index`` and the packed curvature matrices there
         (:func:`~frisicp_core.planes.curvature_coefficients`; heights along those normals)."""
-        normals = self._fitted(index)[index]
-        curvatures: FloatArray = self._curvatures[index]
+        normals = np.take(self._fitted(index), index, axis=0)
+        curvatures: FloatArray = np.take(self._curvatures, index, axis=0)
         return normals, curvatures
 
     def _unfitted(self, index: np.ndarray) -> np.ndarray:
@@ -290,9 +290,9 @@ def _searched(
     before, after = moves[0](points[rows]), moves[1](points[rows])
     shift = np.sqrt(np.einsum("ni,ni->n", after - before, after - before))
     listed = index[rows]
-    offsets = tree.points[listed] - after[:, None, :]
+    offsets = np.take(tree.points, listed, axis=0) - after[:, None, :]
     anew = np.einsum("nki,nki->nk", offsets, offsets)
-    in_half = other_half[listed]
+    in_half = np.take(other_half, listed)
     nearest_in_half = np.where(in_half, anew, np.inf).min(axis=1)
     lowered = floor[rows] - shift
     with np.errstate(invalid="ignore"):
@@ -323,8 +323,8 @@ class Half:
         """Each candidate row's first (nearest) candidate in the half: squared distances, rows in
         the whole cloud, and which candidate rows have one."""
         dist_sq, index = candidates
-        inside = self.mask[index]
-        found = inside.any(axis=1)
+        inside: np.ndarray = np.take(self.mask, index)
+        found = np.asarray(inside.any(axis=1))
         first = np.argmax(inside, axis=1)
         rows = np.arange(index.shape[0])
         return dist_sq[rows, first][found], index[rows, first][found], found
@@ -522,7 +522,9 @@ def _plane_pairs(
     normals[near] = near_normals
     # The surface's height above each partner's tangent plane where T(a) lies over it (module doc),
     # less what the offsets' noise adds, its variance per axis that of the plain residuals.
-    offsets = np.broadcast_to(paired.mapped[keep][:, None, :], normals.shape)[near] - model[near_partners]
+    offsets = np.broadcast_to(paired.mapped[keep][:, None, :], normals.shape)[near] - np.take(
+        model, near_partners, axis=0
+    )
     plain = np.einsum("ni,ni->n", offsets, near_normals)
     noise_variance = float(np.mean(plain**2)) if plain.size else 0.0
     heights = np.zeros(partners.shape)
@@ -532,7 +534,7 @@ def _plane_pairs(
     normals = normals * signs[..., None]
     weights = near / near.sum(axis=1, keepdims=True)
     mean_normal = np.einsum("nk,nki->ni", weights, normals)
-    mean_offset = np.einsum("nk,nki,nki->n", weights, normals, model[partners])
+    mean_offset = np.einsum("nk,nki,nki->n", weights, normals, np.take(model, partners, axis=0))
     mean_offset += np.einsum("nk,nk->n", weights, signs * heights)
     sources = [paired.mapped[keep]]
     # The point of the mean normal's line through the origin on the plane of the mean residual:
@@ -547,7 +549,7 @@ def _plane_pairs(
         near = _as_near(backward_sq[keep_back])
         weights = near / near.sum(axis=1, keepdims=True)
         kept_columns = columns[keep_back]
-        partners_mapped = sim.apply(data[backward_index[keep_back]].reshape(-1, data.shape[1])).reshape(
+        partners_mapped = sim.apply(np.take(data, backward_index[keep_back].reshape(-1), axis=0)).reshape(
             (*near.shape, data.shape[1])
         )
         sources.append(np.einsum("nk,nki->ni", weights, partners_mapped))

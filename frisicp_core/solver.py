@@ -190,7 +190,7 @@ class Solver:
         parts = [
             PairPart(
                 level.data,
-                level.model_tree.points[pairs.forward_index],
+                np.take(level.model_tree.points, pairs.forward_index, axis=0),
                 pairs.forward.keep.astype(np.float64),
             )
         ]
@@ -198,7 +198,7 @@ class Solver:
             assert level.data_tree is not None
             parts.append(
                 PairPart(
-                    level.data_tree.points[pairs.backward_index],
+                    np.take(level.data_tree.points, pairs.backward_index, axis=0),
                     level.model,
                     pairs.backward.keep.astype(np.float64),
                 )
