@@ -83,5 +83,6 @@ class NeighbourLists:
     def _searched(self, queries: FloatArray, k: int, listed: int) -> tuple[FloatArray, np.ndarray]:
         dist_sq, index = self.tree.query_k(queries, listed)
         self._reference, self._dist_sq, self._index = queries.copy(), dist_sq, index
-        self._axes = [np.take(self.tree.points[:, axis], index) for axis in range(queries.shape[1])]
+        listed_points = np.take(self.tree.points, index, axis=0)  # one gather, then its axes
+        self._axes = [np.ascontiguousarray(listed_points[..., axis]) for axis in range(queries.shape[1])]
         return dist_sq[:, :k].copy(), index[:, :k].copy()
