@@ -30,7 +30,8 @@ similarity with scale 1.7 and up to 30 degrees) registered onto the whole scene,
 the scan at the truth: building a KD-tree on the scan, querying every scan point (aligned) in the
 scene's prepared tree, and querying the scene points inside the aligned scan's bounding box (the
 backward pairs the scan implies; a scene point outside it pairs with nothing of the scan) in the
-scan's tree. It is timed between the registrations (median of 5), so load slows both alike.
+scan's tree. It is timed between the registrations (median of 5), so load slows both alike,
+on one OpenMP thread, as ``register`` runs its own queries.
 Reported per case: the first registration against the scene (its tree and the descriptors of a
 global search built on the way) and a second, of another crop, against the same prepared scene;
 in time passes and in query passes (points queried by the registration's 1-nearest-neighbour
@@ -66,6 +67,7 @@ from frisicp_core import (
     Similarity,
     register,
 )
+from frisicp_core.threads import one_thread
 from frisicp_ros.stream.motion import MotionTracker
 
 MAP_SIZES = (100_000, 1_000_000, 2_000_000, 4_000_000)
@@ -230,14 +232,19 @@ def crop_case(scene: np.ndarray, points: int, rng: np.random.Generator) -> tuple
 
 
 def aligned_pass(aligned: np.ndarray, scene: PreparedModel) -> tuple[float, int]:
-    """Seconds of one aligned pass of the scan (module doc) and the points it queries."""
+    """Seconds of one aligned pass of the scan (module doc) and the points it queries, on one
+    OpenMP thread as ``register`` runs its queries (:mod:`frisicp_core.threads`): pykdtree's
+    default threads made the pass 1.3-1.7x faster than the registration's own queries on the
+    2-core VM (2026-12-07), a unit too small."""
     low, high = aligned.min(axis=0), aligned.max(axis=0)
-    started = time.perf_counter()
-    inside = scene.points[np.all((scene.points >= low) & (scene.points <= high), axis=1)]
-    scan_tree = NearestNeighbors(aligned)
-    scene.tree().query(aligned)
-    scan_tree.query(inside)
-    return time.perf_counter() - started, aligned.shape[0] + inside.shape[0]
+    with one_thread():
+        started = time.perf_counter()
+        inside = scene.points[np.all((scene.points >= low) & (scene.points <= high), axis=1)]
+        scan_tree = NearestNeighbors(aligned)
+        scene.tree().query(aligned)
+        scan_tree.query(inside)
+        seconds = time.perf_counter() - started
+    return seconds, aligned.shape[0] + inside.shape[0]
 
 
 def cold(scene_points: np.ndarray, cases: int, scan_points: int) -> list[dict[str, Any]]:
