@@ -235,7 +235,7 @@ def aligned_pass(aligned: np.ndarray, scene: PreparedModel) -> tuple[float, int]
     """Seconds of one aligned pass of the scan (module doc) and the points it queries, on one
     OpenMP thread as ``register`` runs its queries (:mod:`frisicp_core.threads`): pykdtree's
     default threads made the pass 1.3-1.7x faster than the registration's own queries on the
-    2-core VM (2026-12-07), a unit too small."""
+    2-core VM (2026-12-07, this function timed both ways in a one-off check), a unit too small."""
     low, high = aligned.min(axis=0), aligned.max(axis=0)
     with one_thread():
         started = time.perf_counter()

@@ -1,9 +1,10 @@
 """Fuzz: a live node fed >= 1,000 hostile PointCloud2 messages of every known class (as data and
 as model), interleaved with valid pairs. Seeded and bounded. A cloud of well-formed numbers in
 another shape costs a cold global search (2026-12-07: 2.8 s each for "another shape", 1.1 s for
-"int8 coordinates": 168 of the run's 290 s when every class came every round), so those classes
-come every COSTLY_EVERY-th round of the classes, the others every round. 2,100 messages, as until
-2026-12-06, took 7 of CI's 30 minutes; `make fuzz` sends 2,000 to the console-script node.
+"int8 coordinates": 168 of the run's 290 s with COSTLY_EVERY = 1; ``pytest -s`` prints the
+slowest classes' seconds), so those classes come every COSTLY_EVERY-th round of the classes,
+the others every round. 2,100 messages, as until 2026-12-06, took 7 of CI's 30 minutes;
+`make fuzz` sends 2,000 to the console-script node.
 
 Asserts: the node stays alive (worker, executor); every valid pair is answered correctly
 (rotation < 1 degree, scale < 1 %); no cloud of nonsense numbers (wrong byte order, random
@@ -150,6 +151,7 @@ def test_hostile_messages_never_kill_hang_or_poison_the_node():
     rng = np.random.default_rng(SEED)
     fuzzer = Fuzzer()
     sent: Counter[str] = Counter()
+    seconds_by_class: Counter[str] = Counter()  # the node's time per class, printed
     wrong: list[str] = []
     valid_pairs = 0
     data_messages = 0
@@ -188,7 +190,9 @@ def test_hostile_messages_never_kill_hang_or_poison_the_node():
                     fuzzer.send_model(message)
                     stamp += 10_000_000
                     message = valid_data(rng, stamp)  # paired with the hostile model
+                began = time.monotonic()
                 fuzzer.send_data(copy.copy(message))
+                seconds_by_class[name] += time.monotonic() - began
                 if name in GARBAGE:
                     garbage_stamps.add((message.header.stamp.sec, message.header.stamp.nanosec))
                 data_messages += 1
@@ -210,7 +214,8 @@ def test_hostile_messages_never_kill_hang_or_poison_the_node():
             f" unreliable {report.values['unreliable results']}, rejected model/data/pair"
             f" {report.values['rejected model clouds']}/{report.values['rejected data clouds']}/"
             f"{report.values['rejected pairs']}, publish errors {report.values['publish errors']};"
-            f" RSS growth {rss_growth:.1f} MiB"
+            f" RSS growth {rss_growth:.1f} MiB; slowest classes (s): "
+            + ", ".join(f"{name} {seconds:.1f}" for name, seconds in seconds_by_class.most_common(4))
         )
         assert not wrong, wrong[:10]
         time.sleep(0.5)  # outputs still in flight
