@@ -29,7 +29,7 @@ tracebacks printed).
 
     nice -n 10 python benchmarks/cluster_throughput.py            # 60 pairs of 30,000 points, 3 tries
     python benchmarks/cluster_throughput.py --pairs 16 --points 5000   # a quick look
-    python benchmarks/cluster_throughput.py --quick   # every section once: 8 pairs of 2,000 points
+    python benchmarks/cluster_throughput.py --quick   # every section once: 4 pairs of 2,000 points
 """
 
 from __future__ import annotations
@@ -255,7 +255,7 @@ def main() -> int:
     parser = script.parser(
         __file__,
         __doc__,
-        "every section once: 8 pairs of 2,000-point clouds, one try, one start-up",
+        "every section once: 4 pairs of 2,000-point clouds (one chunk), one try, one start-up",
         repeats=3,
         json_out=True,
     )
@@ -264,7 +264,7 @@ def main() -> int:
     args = script.parse(parser)
     start_up_repeats = 5
     if args.quick:
-        args.pairs, args.points, args.repeats, start_up_repeats = 8, 2000, 1, 1
+        args.pairs, args.points, args.repeats, start_up_repeats = 4, 2000, 1, 1
     with tempfile.TemporaryDirectory() as tmp:
         workdir = Path(tmp)
         bag = workdir / "input"

@@ -10,7 +10,7 @@
   with a note without rclpy).
 
     python benchmarks/doc_pictures.py [--out docs/images] [--only register,bag,demo] [--data DIR]
-    python benchmarks/doc_pictures.py --quick   # all three into build/doc_pictures, a 3 s demo
+    python benchmarks/doc_pictures.py --quick   # all three into build/doc_pictures: a 10 s recording, a 3 s demo
 """
 
 from __future__ import annotations
@@ -33,6 +33,8 @@ SCRIPTS = Path(sys.executable).parent
 DEMO_DOMAIN = "187"  # its own: never shared with node_latency.py (188), big_map_node.py (189) or a test
 DEMO_SECONDS = 6  # the full run's demo; --quick: QUICK_DEMO_SECONDS
 QUICK_DEMO_SECONDS = 3
+CLOUDS = 60  # the bag picture's recording, 30 s at 2 Hz; --quick: QUICK_CLOUDS (10 s)
+QUICK_CLOUDS = 20
 
 
 def register_picture(args: argparse.Namespace) -> None:
@@ -49,8 +51,9 @@ def register_picture(args: argparse.Namespace) -> None:
         subprocess.run([*command, "--plot", str(out / "register_bunny.png")], check=True)
 
 
-def recording(path: Path) -> None:
-    """A rosbag2 (mcap) of a map and a moving sensor's clouds, two of them damaged."""
+def recording(path: Path, clouds: int) -> None:
+    """A rosbag2 (mcap) of a map and a moving sensor's ``clouds`` (2 Hz), two of them damaged, at
+    about a third and two thirds of the way."""
     from rosbags.rosbag2 import StoragePlugin, Writer
     from rosbags.typesys import Stores, get_typestore
 
@@ -73,11 +76,11 @@ def recording(path: Path) -> None:
             writer.write(topics[topic], stamp, typestore.serialize_cdr(msg, "sensor_msgs/msg/PointCloud2"))
 
         write("/map_cloud", bumpy_surface(20000, seed=0), "map", start)
-        for k in range(60):
+        for k in range(clouds):
             t, stamp = 0.5 * k, start + (k + 1) * 500_000_000
-            if k == 21:
+            if k == clouds * 7 // 20:
                 points = rng.uniform(-1e3, 1e3, size=(3000, 3))  # random numbers, not a scene
-            elif k == 42:
+            elif k == clouds * 7 // 10:
                 points = rng.normal(size=(3, 3))  # too few points
             else:
                 sample = bumpy_surface(3000, seed=int(rng.integers(1 << 30)))
@@ -89,7 +92,7 @@ def bag_picture(args: argparse.Namespace) -> None:
     out = args.out
     with tempfile.TemporaryDirectory() as tmp:
         bag = Path(tmp) / "recording"
-        recording(bag)
+        recording(bag, QUICK_CLOUDS if args.quick else CLOUDS)
         subprocess.run(
             [
                 str(SCRIPTS / "frisicp"),
@@ -124,7 +127,10 @@ PICTURES = {"register": register_picture, "bag": bag_picture, "demo": demo_pictu
 
 def main() -> int:
     parser = script.parser(
-        __file__, __doc__, "all three pictures into build/doc_pictures/, the demo for 3 s", data=True
+        __file__,
+        __doc__,
+        "all three pictures into build/doc_pictures/, a 10 s recording, the demo for 3 s",
+        data=True,
     )
     parser.add_argument(
         "--out",

@@ -1,10 +1,13 @@
-"""Fuzz: a live node fed >= 1,000 hostile PointCloud2 messages of every known class (as data and
+"""Fuzz: a live node fed >= 500 hostile PointCloud2 messages of every known class (as data and
 as model), interleaved with valid pairs. Seeded and bounded. A cloud of well-formed numbers in
 another shape costs a cold global search (2026-12-07: 2.8 s each for "another shape", 1.1 s for
 "int8 coordinates": 168 of the run's 290 s with COSTLY_EVERY = 1; ``pytest -s`` prints the
 slowest classes' seconds), so those classes come every COSTLY_EVERY-th round of the classes,
-the others every round. 2,100 messages, as until 2026-12-06, took 7 of CI's 30 minutes;
-`make fuzz` sends 2,000 to the console-script node.
+the others every round. Each message costs about as much as the next (the four slowest classes
+took 16-38 s of a 1,056-message run's 180 s), so the count is what sets the time: 2,100
+messages, as until 2026-12-06, took 7 of CI's 30 minutes, 1,056 until 2026-12-07 3 of them;
+525 send every class about 21 times, a quarter of them as the model. `make fuzz` sends 2,000
+to the console-script node, every class alike.
 
 Asserts: the node stays alive (worker, executor); every valid pair is answered correctly
 (rotation < 1 degree, scale < 1 %); no cloud of nonsense numbers (wrong byte order, random
@@ -46,7 +49,7 @@ from frisicp_core import Similarity, rotation_angle  # noqa: E402
 pytestmark = [pytest.mark.ros, pytest.mark.slow]
 
 SEED = 2026
-HOSTILE_MESSAGES = 1050
+HOSTILE_MESSAGES = 525
 VALID_EVERY = 8  # a valid pair after every 8 hostile messages
 STEP_TIMEOUT = 10.0
 RELIABLE = QoSProfile(depth=50, reliability=ReliabilityPolicy.RELIABLE)
@@ -223,7 +226,7 @@ def test_hostile_messages_never_kill_hang_or_poison_the_node():
         assert not published_garbage, f"{len(published_garbage)} garbage clouds were published as poses"
         assert fuzzer.node._worker.is_alive() and fuzzer.spinner.is_alive()
         assert status._worker_stopped is None
-        assert set(sent) == set(HOSTILE) and sum(sent.values()) >= 1000
+        assert set(sent) == set(HOSTILE) and sum(sent.values()) >= 500
         assert fuzzer.processed() == data_messages, "a pair was lost or counted twice"
         assert fuzzer.node._slot.dropped == 0 and report.values["publish errors"] == "0"
         assert rss_growth < 20.0, f"resident memory grew {rss_growth:.1f} MiB"
