@@ -18,11 +18,14 @@ demo: $(STAMP)
 	$(BIN)/frisicp-demo
 
 # The README's test command: every test, in two runs. The computing ones (test/core, test/stream,
-# test/bench) TEST_JOBS at a time (pytest-xdist, a test file per worker: its module fixtures are
-# built once); the rest, which start processes, send signals or run ROS and time their waits for
-# an otherwise idle machine, one at a time (a new test folder lands here). pytest exits 5 when it
-# collects nothing: that is a failure here, said plainly.
-PARALLEL_TESTS := test/core test/stream test/bench
+# test/bench) and those that run the command line on files and bags with minute-long timeouts
+# (test/cli; the bag mode's command, batches, damaged and malformed bags, locating) TEST_JOBS at
+# a time (pytest-xdist, a test file per worker: its module fixtures are built once); the rest,
+# which send signals, run clusters or ROS and time their waits for an otherwise idle machine,
+# one at a time (a new test folder lands here). pytest exits 5 when it collects nothing: that is
+# a failure here, said plainly.
+PARALLEL_TESTS := test/core test/stream test/bench test/cli test/bag/test_bag_command.py \
+  test/bag/test_bag_batch.py test/bag/test_damaged_bags.py test/bag/test_bag_integrity.py test/bag/test_locate.py
 TEST_JOBS ?= 2
 test: $(STAMP)
 	@$(BIN)/python -m pytest -q -n $(TEST_JOBS) --dist loadfile $(PARALLEL_TESTS); first=$$?; \
@@ -39,7 +42,8 @@ colcon-test: $(STAMP)
 	cd test && ../$(BIN)/python -m support.workspace $(COLCON_TESTS)
 
 # setup.py's lower bounds, installed exactly (.ci/dependency_floors.py) in a venv of their own, run
-# the bag tests: the code that leans most on other packages' APIs (rosbags, mcap). ~2 min.
+# the bag tests: the code that leans most on other packages' APIs (rosbags, mcap); not the
+# signal tests, which exercise the process's signal handling, not those APIs. ~2 min.
 FLOORS := .venv-floors
 test-floors:
 	rm -rf $(FLOORS)
@@ -48,7 +52,7 @@ test-floors:
 	$(FLOORS)/bin/pip install --quiet $$($(PYTHON) .ci/dependency_floors.py) "pytest>=7" "mcap-ros2-support==0.5.0"
 	$(FLOORS)/bin/pip install --quiet --no-deps -e .
 	$(FLOORS)/bin/pip list --format=freeze | grep -iE '^(numpy|scipy|pykdtree|plyfile|pypcd4|rosbags|mcap|tqdm)=='
-	$(FLOORS)/bin/python -m pytest -q -p no:cacheprovider test/bag
+	$(FLOORS)/bin/python -m pytest -q -p no:cacheprovider test/bag --ignore=test/bag/test_bag_signals.py
 
 # ruff (lint and format) over the tree; mypy: the core strict, the ROS side and the benchmark typed.
 lint: $(STAMP)

@@ -10,7 +10,7 @@ JSONL and result bag writing) with --max-points 0 so every point is registered.
 
     python benchmarks/bag_throughput.py                 # 200 pairs, the issue's setting
     python benchmarks/bag_throughput.py --pairs 20      # a quick look
-    python benchmarks/bag_throughput.py --quick         # 4 pairs of 2,000-point clouds: a smoke run
+    python benchmarks/bag_throughput.py --quick         # 2 pairs of 2,000-point clouds: a smoke run
 """
 
 from __future__ import annotations
@@ -107,12 +107,12 @@ def run(bag: Path, jobs: int, workdir: Path, env_extra: dict[str, str]) -> dict[
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = script.parser(__file__, __doc__, "4 pairs of 2,000-point clouds", json_out=True)
+    parser = script.parser(__file__, __doc__, "2 pairs of 2,000-point clouds", json_out=True)
     parser.add_argument("--pairs", type=int, default=200)
     parser.add_argument("--points", type=int, default=30000)
     args = script.parse(parser, argv)
     if args.quick:
-        args.pairs, args.points = 4, 2000
+        args.pairs, args.points = 2, 2000
     cores = str(os.cpu_count() or 2)
     with tempfile.TemporaryDirectory() as tmp:
         workdir = Path(tmp)
