@@ -6,8 +6,9 @@ slowest classes' seconds), so those classes come every COSTLY_EVERY-th round of 
 the others every round. Each message costs about as much as the next (the four slowest classes
 took 16-38 s of a 1,056-message run's 180 s), so the count is what sets the time: 2,100
 messages, as until 2026-12-06, took 7 of CI's 30 minutes, 1,056 until 2026-12-07 3 of them;
-525 send every class about 21 times, a quarter of them as the model. `make fuzz` sends 2,000
-to the console-script node, every class alike.
+HOSTILE_MESSAGES = 525, sent in whole rounds of VALID_EVERY (528), send every class about 21
+times, a quarter of them as the model. `make fuzz` sends 2,000 to the console-script node,
+every class alike.
 
 Asserts: the node stays alive (worker, executor); every valid pair is answered correctly
 (rotation < 1 degree, scale < 1 %); no cloud of nonsense numbers (wrong byte order, random
@@ -218,7 +219,7 @@ def test_hostile_messages_never_kill_hang_or_poison_the_node():
             f" {report.values['rejected model clouds']}/{report.values['rejected data clouds']}/"
             f"{report.values['rejected pairs']}, publish errors {report.values['publish errors']};"
             f" RSS growth {rss_growth:.1f} MiB; slowest classes (s): "
-            + ", ".join(f"{name} {seconds:.1f}" for name, seconds in seconds_by_class.most_common(4))
+            + ", ".join(f"{name} {spent:.1f}" for name, spent in seconds_by_class.most_common(4))
         )
         assert not wrong, wrong[:10]
         time.sleep(0.5)  # outputs still in flight
