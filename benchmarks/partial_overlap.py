@@ -825,6 +825,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     scales = QUICK_SCALES if args.quick else PAPER_SCALES
     if args.scales:
         scales = tuple(float(word) for word in args.scales.split(","))
+    unknown = set(QUICK_GROUPS) - {group.key for group in GROUPS}
+    if unknown:  # a misspelt name would silently shrink the smoke run
+        raise SystemExit(f"QUICK_GROUPS names no group: {sorted(unknown)}")
     groups = []
     for group in GROUPS:
         if args.quick and group.key not in QUICK_GROUPS:
