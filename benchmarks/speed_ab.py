@@ -15,12 +15,16 @@ Usage::
     python benchmarks/speed_ab.py A --after B --threads 0 --repeats 7 --out docs/speed_ab.md
     python benchmarks/speed_ab.py 67ac26e^ --warm     # before issue 14, warm starts (tracking)
     python benchmarks/speed_ab.py 82b55a7^ --crops    # cold crops of real scenes (global search)
+    python benchmarks/speed_ab.py aad415b^ --crops --reverse   # the scenes onto their crops
     python benchmarks/speed_ab.py --quick             # HEAD vs the working tree, 2 scales and a crop, once -> build/
 
 ``--crops`` times partial-overlap cold registrations instead, the cases that run the global
 search: ``benchmarks/trustworthy.py``'s "crop onto scene" cases of 30-60 % crops at the node's
 10,000-point cap, the first (index order) of each share on each of its scenes (12 cases; the
 crops are built by today's code and handed to both workers as arrays, with the truth).
+``--reverse`` takes its "scene onto crop" cases instead (the whole scene onto a 30-60 % crop of
+it, chosen alike), where the search matches the scene's shapes onto the crop's and the search
+with the clouds' roles swapped has its say more often.
 
 ``--threads 1`` (default) sets OMP_NUM_THREADS=1 in both workers, as ``make bench-paper`` does;
 0 leaves OpenMP's default. Exits 0 without measuring when the bunny (in ``--data``) is absent or
@@ -143,16 +147,16 @@ def points_file(cloud: Path, folder: Path) -> Path:
     return path
 
 
-def crop_files(data_dir: Path, folder: Path, quick: bool) -> dict[str, Path]:
-    """``--crops``' cases (module doc) built by today's code, one .npz file each (data, model,
-    truth matrix), by case name."""
+def crop_files(data_dir: Path, folder: Path, quick: bool, suite: str = "crop onto scene") -> dict[str, Path]:
+    """``--crops``' cases (module doc) of ``suite`` built by today's code, one .npz file each
+    (data, model, truth matrix), by case name."""
     import trustworthy
 
     files: dict[str, Path] = {}
     taken: set[tuple[str, float]] = set()
     for spec in trustworthy.specs(quick=False):
         share = spec.crop_share
-        if spec.suite != "crop onto scene" or spec.cap != trustworthy.CAP or share is None or share < 0.3:
+        if spec.suite != suite or spec.cap != trustworthy.CAP or share is None or share < 0.3:
             continue
         if (spec.scene, share) in taken or (quick and files):
             continue
@@ -231,7 +235,12 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--crops", action="store_true", help="cold 30-60 %% crops of real scenes (trustworthy.py's cases)"
     )
+    parser.add_argument(
+        "--reverse", action="store_true", help="with --crops: the scenes onto their crops instead"
+    )
     args = script.parse(parser, argv)
+    if args.reverse and not args.crops:
+        parser.error("--reverse goes with --crops")
     if args.quick:
         args.before, args.repeats = args.before or "HEAD", 1
     if args.before is None:
@@ -253,7 +262,8 @@ def main(argv: list[str] | None = None) -> int:
         points = points_file(bunny, Path(folder))
         cases: dict[str, float | Path] = {f"{scale:.1f}": scale for scale in scales}
         if args.crops:
-            cases = dict(crop_files(args.data, Path(folder), args.quick))
+            suite = "scene onto crop" if args.reverse else "crop onto scene"
+            cases = dict(crop_files(args.data, Path(folder), args.quick, suite))
         elif args.quick and (args.data / "real").is_dir():  # the smoke run takes both paths
             cases.update(crop_files(args.data, Path(folder), quick=True))
         workers = {label: Worker(label, parent, args.threads, points) for label, (parent, _) in cores.items()}
@@ -318,7 +328,11 @@ def write_report(
     lines = [
         "# Core speed before and after: `register` on "
         + (
-            "cold 30-60 % crops of real scenes (trustworthy.py's)"
+            (
+                "cold scenes onto their 30-60 % crops (trustworthy.py's)"
+                if args.reverse
+                else "cold 30-60 % crops of real scenes (trustworthy.py's)"
+            )
             if args.crops
             else "the full-overlap cases of `make bench`"
         )
