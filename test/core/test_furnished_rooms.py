@@ -14,36 +14,37 @@ from __future__ import annotations
 
 from frisicp_bench.metrics import pose_errors
 from frisicp_bench.structures import seeded_case
-from frisicp_core import register
+from frisicp_core import RegistrationResult, register
 from frisicp_core.verdict import CLEAR_NEAR_SHARE
 
 
-def test_a_third_of_a_furnished_room_is_found_where_it_belongs_not_half_beside_it() -> None:
-    # benchmarks/structured_scenes.py --kinds furnished's case "furnished 30% s=1.3" (repeat 1,
-    # crop onto scene, both clouds capped at 10,000 points). While a pose that merely passed the
-    # fit check kept the lowest merit's place and rivalled clear fits, it came out 90 degrees
-    # off with the scale 75 % off, refused as ambiguous: a rival at about the true scale (1.35)
-    # matched its merit (ratio 0.991).
-    case, data, model = seeded_case("furnished", 0.3, "crop onto scene", 1, draw=0, cap=10_000)
+def registered_strictly_right(direction: str, repeat: int) -> RegistrationResult:
+    """structured_scenes.py --kinds furnished's 30 % case "furnished 30% s=1.3" of draw 0 in
+    ``direction`` (``repeat``; both clouds capped at 10,000 points), registered with the
+    defaults and checked strictly right (rotation < 1 degree, scale < 1 %, translation < 0.5 %
+    of the model's diagonal)."""
+    case, data, model = seeded_case("furnished", 0.3, direction, repeat, draw=0, cap=10_000)
     assert case.name == "furnished 30% s=1.3"
     result = register(data, model)
     assert case.truth is not None
     errors = pose_errors(result.similarity, case.truth, data, case.model_diagonal)
     assert errors.rotation_deg < 1.0 and errors.scale < 0.01 and errors.translation < 0.005
+    return result
+
+
+def test_a_third_of_a_furnished_room_is_found_where_it_belongs_not_half_beside_it() -> None:
+    # While a pose that merely passed the fit check kept the lowest merit's place and rivalled
+    # clear fits, this crop came out 90 degrees off with the scale 75 % off, refused as
+    # ambiguous: a rival at about the true scale (1.35) matched its merit (ratio 0.991).
+    result = registered_strictly_right("crop onto scene", repeat=1)
     assert result.reliable, result.reason
     assert result.fit is not None and result.fit.best_near_share <= CLEAR_NEAR_SHARE
 
 
 def test_a_room_onto_a_third_of_it_is_found_where_the_crop_lies_not_shrunk_into_it() -> None:
-    # benchmarks/structured_scenes.py --kinds furnished's case "furnished 30% s=1.3" (repeat 4,
-    # scene onto crop, both clouds capped at 10,000 points). The first feature search matches the
-    # room's shapes onto the crop's and lays the room shrunk into the crop; that pose passes the
-    # fit check, but not clearly. Until the swapped search (the crop's shapes in the room) was
-    # asked then too, the answer came out 179 degrees off, refused as ambiguous.
-    case, data, model = seeded_case("furnished", 0.3, "scene onto crop", 4, draw=0, cap=10_000)
-    assert case.name == "furnished 30% s=1.3"
-    result = register(data, model)
-    assert case.truth is not None
-    errors = pose_errors(result.similarity, case.truth, data, case.model_diagonal)
-    assert errors.rotation_deg < 1.0 and errors.scale < 0.01 and errors.translation < 0.005
+    # The first feature search matches the room's shapes onto the crop's and lays the room
+    # shrunk into the crop; that pose passes the fit check, but not clearly. Until the swapped
+    # search (the crop's shapes in the room) was asked then too, the answer came out 179
+    # degrees off, refused as ambiguous.
+    result = registered_strictly_right("scene onto crop", repeat=4)
     assert result.reliable, result.reason
