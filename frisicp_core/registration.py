@@ -440,7 +440,8 @@ def _register(
                 # asked then too, the swapped search set 6 of 12 right where 2 were (none lost,
                 # and crops onto their rooms, where the first search finds its place, unchanged).
                 # Asked whenever the search ran, it cost 35-80 % more on every partial overlap
-                # and lost a right answer.
+                # and lost a right answer (the overlaps and this cost: one-off diagnostics of
+                # 2026-12-07, docs/trust_history.md; the 6 of 12: structured_scenes.py).
                 swapped = feature_starts(
                     model_set,
                     PreparedModel.of(data_set),
