@@ -22,7 +22,7 @@ does not tell, and turned any way. This stage finds such poses from local shape:
    join the random ones.
 
 The best poses of every rung are ranked together by how much of the two clouds they make
-coincide (:func:`_coverage`), and the best few are returned as starting poses; ICP takes them
+coincide (:func:`coverage`), and the best few are returned as starting poses; ICP takes them
 from there and the usual comparison on the first dense level decides.
 
 The search is not symmetric: every keypoint of a crop has its counterpart in the scene, few of a
@@ -59,7 +59,7 @@ MATCHES = 3
 MAX_MODEL_KEYPOINTS = 4000
 STARTS = 8
 # Poses are ranked by the points they bring within this share of the model's RMS radius of the
-# other cloud (see _coverage), measured on about this many points of each cloud.
+# other cloud (see coverage), measured on about this many points of each cloud.
 FIT_REACH = 0.02
 _COVERAGE_SAMPLE = 500
 # Fewest keypoints worth matching.
@@ -94,17 +94,24 @@ def feature_starts(data: FloatArray, model: PreparedModel, rng: np.random.Genera
             candidates += [pose for _, pose in _robust_poses(described, model_described, rung, rng)]
     if not candidates:
         return []
-    coverage = _coverage(candidates, data, model, FIT_REACH * model.radius)
-    return [candidates[k] for k in np.argsort(-coverage, kind="stable")[:STARTS]]
+    shares = coverage(candidates, data, model, FIT_REACH * model.radius)
+    return [candidates[k] for k in np.argsort(-shares, kind="stable")[:STARTS]]
 
 
-def _coverage(poses: list[Similarity], data: FloatArray, model: PreparedModel, reach: float) -> FloatArray:
-    """For each pose, the share of (a sample of) the data points it brings within ``reach`` of
-    the model plus the share of model points it brings the data within ``reach`` of: how much of
-    the clouds it makes coincide. The rungs' own scores are not comparable between rungs (a
-    coarse rung's few keypoints are matched within a wide reach, by chance too); this is."""
-    data_sample = data[:: max(1, data.shape[0] // _COVERAGE_SAMPLE)]
-    model_sample = model.points[:: max(1, len(model) // _COVERAGE_SAMPLE)]
+def coverage(
+    poses: list[Similarity],
+    data: FloatArray,
+    model: PreparedModel,
+    reach: float,
+    sample: int = _COVERAGE_SAMPLE,
+) -> FloatArray:
+    """For each pose, the share of (a sample of about ``sample``) data points it brings within
+    ``reach`` of the model plus the share of model points it brings the data within ``reach``
+    of: how much of the clouds it makes coincide. The rungs' own scores are not comparable
+    between rungs (a coarse rung's few keypoints are matched within a wide reach, by chance
+    too); this is."""
+    data_sample = data[:: max(1, data.shape[0] // sample)]
+    model_sample = model.points[:: max(1, len(model) // sample)]
     model_tree, data_tree = model.tree(), NearestNeighbors(data)
     # Only whether a point comes within ``reach`` counts, so the queries give up beyond it (a
     # wrong pose throws most points far off, the dearest queries); the bound is a hair wider so

@@ -23,6 +23,8 @@ What it holds, each computed when first needed and kept:
 - the thinned levels of the sparse-to-dense pyramid (:meth:`thinned`: the same random subsets a
   fresh preparation would draw, so results do not depend on whether the model was prepared);
 - the shape descriptors of a global search (:mod:`frisicp_core.global_search`), per radius;
+- its dominant plane directions (:mod:`frisicp_core.plane_directions`) for the plane-arrangement
+  starts;
 - the depth camera's shells its points lie on about the origin, if any
   (:func:`frisicp_core.depth_steps.find_depth_steps`: a model cloud in its sensor's frame), and
   its average over voxels a step wide, prepared, where a registration averages both clouds
@@ -54,6 +56,7 @@ from .depth_steps import DepthSteps, find_depth_steps
 from .features import Descriptors, describe
 from .grid_index import GridIndex
 from .kdtree import NearestNeighbors
+from .plane_directions import PlaneDirections, plane_directions
 from .points import as_point_set, centroid, rms_radius, spread
 from .refine import ModelNormals
 from .sampling import downsample, in_spatial_order
@@ -244,6 +247,10 @@ class PreparedModel:
         return self._cache.value(
             ("descriptors", radius, max_keypoints), lambda: describe(self.points, radius, max_keypoints)
         )
+
+    def plane_directions(self) -> PlaneDirections:
+        """:func:`frisicp_core.plane_directions.plane_directions` of the points (kept)."""
+        return self._cache.value(("plane directions",), lambda: plane_directions(self.points))
 
     def thinned(self, chain: Thinning, size: int, rng: np.random.Generator) -> Thinning:
         """The next coarser level of a pyramid: ``downsample(chain.points, size, rng)``,

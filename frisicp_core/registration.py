@@ -60,6 +60,7 @@ from .global_search import feature_starts
 from .hypotheses import beyond_guess, covariance_scale_bounds, initial_hypotheses
 from .levels import Level, Pairs, Pyramid, level_motion
 from .near_probes import near_rival, near_starts
+from .plane_arrangement import plane_starts
 from .points import as_point_set, centroid, check_same_dimension, rms_radius, spread
 from .poses import PoseBatch
 from .prepared import PreparedModel
@@ -416,8 +417,11 @@ def _register(
             # no rival to be run down the levels (_probe) when it does not: on an undetermined
             # 20 % crop one 93 degrees off, refined there, replaced an answer 1 degree off.
             starts = feature_starts(data_set, model, rng)
+            # In a room of boxes the descriptors match nothing in particular; the arrangement of
+            # its walls and floor does (frisicp_core.plane_arrangement; none elsewhere).
+            planes = plane_starts(data_set, model)
             shrunk = shrunk_starts([sim, *runners_up], centroid(levels[0].data))
-            unshrunk = [sim, *runners_up, *starts]
+            unshrunk = [sim, *runners_up, *starts, *planes]
             (sim, report, pairs), runners_up = on_first_level([*unshrunk, *shrunk], nominable=len(unshrunk))
             reports = [report]
             if (
