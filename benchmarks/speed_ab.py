@@ -16,6 +16,7 @@ Usage::
     python benchmarks/speed_ab.py 67ac26e^ --warm     # before issue 14, warm starts (tracking)
     python benchmarks/speed_ab.py 82b55a7^ --crops    # cold crops of real scenes (global search)
     python benchmarks/speed_ab.py aad415b^ --crops --reverse   # the scenes onto their crops
+    python benchmarks/speed_ab.py 47b4fff^ --rooms    # furnished rooms and their 30 % crops, both ways
     python benchmarks/speed_ab.py --quick             # HEAD vs the working tree, 2 scales and a crop, once -> build/
 
 ``--crops`` times partial-overlap cold registrations instead, the cases that run the global
@@ -25,6 +26,11 @@ crops are built by today's code and handed to both workers as arrays, with the t
 ``--reverse`` takes its "scene onto crop" cases instead (the whole scene onto a 30-60 % crop of
 it, chosen alike), where the search matches the scene's shapes onto the crop's and the search
 with the clouds' roles swapped has its say more often.
+
+``--rooms`` times ``benchmarks/structured_scenes.py --kinds furnished``'s 30 % cases of draw 0
+instead (six synthetic furnished rooms onto a 30 % crop of each and six crops onto their rooms,
+capped at 10,000 points): man-made scenes of boxes, where the plane-arrangement starts
+(:mod:`frisicp_core.plane_arrangement`) join the search.
 
 ``--threads 1`` (default) sets OMP_NUM_THREADS=1 in both workers, as ``make bench-paper`` does;
 0 leaves OpenMP's default. Exits 0 without measuring when the bunny (in ``--data``) is absent or
@@ -169,6 +175,22 @@ def crop_files(data_dir: Path, folder: Path, quick: bool, suite: str = "crop ont
     return files
 
 
+def room_files(folder: Path, quick: bool) -> dict[str, Path]:
+    """``--rooms``' cases (module doc) built by today's code, one .npz file each (data, model,
+    truth matrix), by case name and direction."""
+    from frisicp_bench.structures import DIRECTIONS, seeded_case
+
+    files: dict[str, Path] = {}
+    for direction in DIRECTIONS:
+        for repeat in range(1 if quick else 6):
+            case, data, model = seeded_case("furnished", 0.3, direction, repeat, draw=0, cap=10_000)
+            assert case.truth is not None
+            path = folder / f"room{len(files)}.npz"
+            np.savez(path, data=data, model=model, truth=case.truth.matrix())
+            files[f"{case.name} {direction} #{repeat}"] = path
+    return files
+
+
 def extract_core(revision: str, into: Path) -> tuple[Path, str]:
     """frisicp_core at ``revision`` under ``into``/<name>/ (the working tree's own folder for WORKTREE),
     and which commit last changed it there."""
@@ -238,7 +260,14 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument(
         "--reverse", action="store_true", help="with --crops: the scenes onto their crops instead"
     )
+    parser.add_argument(
+        "--rooms",
+        action="store_true",
+        help="furnished rooms and their 30 %% crops, both ways (structured_scenes.py's)",
+    )
     args = script.parse(parser, argv)
+    if args.rooms and (args.crops or args.warm):
+        parser.error("--rooms times cold registrations of its own cases: no --crops, no --warm")
     if args.reverse and not args.crops:
         parser.error("--reverse goes with --crops")
     if args.quick:
@@ -264,6 +293,8 @@ def main(argv: list[str] | None = None) -> int:
         if args.crops:
             suite = "scene onto crop" if args.reverse else "crop onto scene"
             cases = dict(crop_files(args.data, Path(folder), args.quick, suite))
+        elif args.rooms:
+            cases = dict(room_files(Path(folder), args.quick))
         elif args.quick and (args.data / "real").is_dir():  # the smoke run takes both paths
             cases.update(crop_files(args.data, Path(folder), quick=True))
         workers = {label: Worker(label, parent, args.threads, points) for label, (parent, _) in cores.items()}
@@ -334,6 +365,8 @@ def write_report(
                 else "cold 30-60 % crops of real scenes (trustworthy.py's)"
             )
             if args.crops
+            else "furnished rooms and their 30 % crops, both ways (structured_scenes.py's)"
+            if args.rooms
             else "the full-overlap cases of `make bench`"
         )
         + ", interleaved",
@@ -353,7 +386,7 @@ def write_report(
         f"{summary['worst_ratio']:.2f}, total time {summary['total_ratio']:.2f}** (median register "
         f"{summary['median_before_ms']:.0f} ms before, {summary['median_after_ms']:.0f} ms after).",
         "",
-        f"| {'case' if args.crops else 's'} | before ms | after ms | after / before "
+        f"| {'case' if args.crops or args.rooms else 's'} | before ms | after ms | after / before "
         "| before: worst rotation error (deg), scale error | after: same |",
         "|---|---|---|---|---|---|",
     ]
