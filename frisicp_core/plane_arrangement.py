@@ -92,52 +92,12 @@ def plane_starts(data: FloatArray, model: PreparedModel) -> list[Similarity]:
     ratio = model.radius / rms_radius(data)
     scales = ratio * 2.0 ** (np.arange(-OCTAVES * PER_OCTAVE, OCTAVES * PER_OCTAVE + 1) / PER_OCTAVE)
     width = BIN * model.diagonal
-    facing = np.cos(FACING)
     poses: list[Similarity] = []
     # The data's profiles depend on the pair of its directions only (the rotation turns its frame
     # onto the model's): made once per pair and axis, shared by the pair's rotations.
     profiles: dict[tuple[int, int, int], _ScaledProfiles | None] = {}
     for rotation, pair in _rotations(ours.directions, theirs.directions):
-        frame = _frame(ours.directions[pair[0]], ours.directions[pair[1]])
-        axes = rotation @ frame  # the data's frame turned onto the model's: columns
-        model_along = theirs.points @ axes
-        model_faces = np.abs(theirs.normals @ axes) > facing
-        fits: list[_ProfileFit | None] = []
-        total = np.zeros(scales.size)
-        for axis in range(3):
-            key = (*pair, axis)
-            if key not in profiles:
-                own = np.abs(ours.normals @ frame[:, axis]) > facing
-                enough = np.count_nonzero(own) >= _MIN_FACING
-                profiles[key] = (
-                    _ScaledProfiles.of(ours.points[own] @ frame[:, axis], scales, width) if enough else None
-                )
-            other = model_faces[:, axis]
-            scaled = profiles[key]
-            if scaled is None or np.count_nonzero(other) < _MIN_FACING:
-                fits.append(None)
-                continue
-            fit = _profile_fit(scaled, model_along[other, axis], width)
-            fits.append(fit)
-            total += fit.best()
-        padded = np.pad(total, 1, constant_values=-np.inf)
-        peaks = np.flatnonzero((total >= padded[:-2]) & (total >= padded[2:]) & (total > 0))
-        data_centre = ours.points.mean(axis=0) @ frame
-        for rank, k in enumerate(peaks[np.argsort(-total[peaks], kind="stable")][:SCALES_KEPT]):
-            # A room's profile repeats itself (two walls, a row of cupboards): at the best
-            # scales the runner-up shift along any axis may be the right one.
-            count = SHIFTS_KEPT if rank < SCALES_COMBINED else 1
-            along = [
-                fit.translations(int(k), count)
-                if fit is not None
-                # No planes across this axis: the centroids' offset.
-                else np.full(1, model_along[:, axis].mean() - scales[k] * data_centre[axis])
-                for axis, fit in enumerate(fits)
-            ]
-            poses += [
-                Similarity(float(scales[k]), rotation, axes @ np.array(shift))
-                for shift in itertools.product(*(np.unique(values) for values in along))
-            ]
+        poses += _rotation_poses(rotation, pair, ours, theirs, scales, width, profiles)
     if not poses:
         return []
     # Ranked in two rounds: all on a few points, the best of those on more.
@@ -146,6 +106,62 @@ def plane_starts(data: FloatArray, model: PreparedModel) -> list[Similarity]:
     shortlist = [poses[k] for k in np.argsort(-first, kind="stable")[:_SHORTLIST]]
     shares = coverage(shortlist, data, model, reach)
     return [shortlist[k] for k in np.argsort(-shares, kind="stable")[:STARTS]]
+
+
+def _rotation_poses(
+    rotation: FloatArray,
+    pair: tuple[int, int],
+    ours: PlaneDirections,
+    theirs: PlaneDirections,
+    scales: FloatArray,
+    width: float,
+    profiles: dict[tuple[int, int, int], _ScaledProfiles | None],
+) -> list[Similarity]:
+    """The poses of one rotation (module doc, step 3), taking the data's profiles of its ``pair``
+    of directions from ``profiles`` (filled where missing)."""
+    facing = np.cos(FACING)
+    frame = _frame(ours.directions[pair[0]], ours.directions[pair[1]])
+    axes = rotation @ frame  # the data's frame turned onto the model's: columns
+    model_along = theirs.points @ axes
+    model_faces = np.abs(theirs.normals @ axes) > facing
+    fits: list[_ProfileFit | None] = []
+    total = np.zeros(scales.size)
+    for axis in range(3):
+        key = (*pair, axis)
+        if key not in profiles:
+            own = np.abs(ours.normals @ frame[:, axis]) > facing
+            enough = np.count_nonzero(own) >= _MIN_FACING
+            profiles[key] = (
+                _ScaledProfiles.of(ours.points[own] @ frame[:, axis], scales, width) if enough else None
+            )
+        other = model_faces[:, axis]
+        scaled = profiles[key]
+        if scaled is None or np.count_nonzero(other) < _MIN_FACING:
+            fits.append(None)
+            continue
+        fit = _profile_fit(scaled, model_along[other, axis], width)
+        fits.append(fit)
+        total += fit.best()
+    padded = np.pad(total, 1, constant_values=-np.inf)
+    peaks = np.flatnonzero((total >= padded[:-2]) & (total >= padded[2:]) & (total > 0))
+    data_centre = ours.points.mean(axis=0) @ frame
+    poses: list[Similarity] = []
+    for rank, k in enumerate(peaks[np.argsort(-total[peaks], kind="stable")][:SCALES_KEPT]):
+        # A room's profile repeats itself (two walls, a row of cupboards): at the best scales
+        # the runner-up shift along any axis may be the right one.
+        count = SHIFTS_KEPT if rank < SCALES_COMBINED else 1
+        along = [
+            fit.translations(int(k), count)
+            if fit is not None
+            # No planes across this axis: the centroids' offset.
+            else np.full(1, model_along[:, axis].mean() - scales[k] * data_centre[axis])
+            for axis, fit in enumerate(fits)
+        ]
+        poses += [
+            Similarity(float(scales[k]), rotation, axes @ np.array(shift))
+            for shift in itertools.product(*(np.unique(values) for values in along))
+        ]
+    return poses
 
 
 def _frame(first: FloatArray, second: FloatArray) -> FloatArray:

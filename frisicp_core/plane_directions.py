@@ -50,7 +50,7 @@ class PlaneDirections:
 
 
 def plane_directions(points: FloatArray) -> PlaneDirections:
-    """The dominant plane directions of a 3-D cloud (module doc, step 1)."""
+    """The dominant plane directions of a 3-D cloud (module doc)."""
     sample = points[:: max(1, -(-points.shape[0] // SAMPLE))]
     if sample.shape[0] <= NEIGHBOURS:
         empty = np.zeros((0, 3))
