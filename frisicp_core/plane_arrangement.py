@@ -86,7 +86,10 @@ def structured(data: PlaneDirections, model: PlaneDirections) -> bool:
 def plane_starts(data: FloatArray, model: PreparedModel) -> list[Similarity]:
     """Starting poses for 3-D ``data`` onto ``model`` from their planes' arrangement (module
     doc), best first; none where the scene is not :func:`structured`."""
-    ours, theirs = plane_directions(data), model.plane_directions()
+    theirs = model.plane_directions()  # kept by the prepared model
+    if len(theirs.directions) < 2:
+        return []  # not structured, whatever the data's directions
+    ours = plane_directions(data)
     if not structured(ours, theirs):
         return []
     ratio = model.radius / rms_radius(data)
