@@ -177,21 +177,19 @@ def _frame(first: FloatArray, second: FloatArray) -> FloatArray:
 def _rotations(data: FloatArray, model: FloatArray) -> list[tuple[FloatArray, tuple[int, int]]]:
     """(rotation, the data's pair of directions) for every agreeing pair (module doc, step 2)."""
     found: list[tuple[FloatArray, tuple[int, int]]] = []
-    for i in range(len(data)):
-        for j in range(i + 1, len(data)):
-            cosine = float(data[i] @ data[j])
-            if abs(cosine) > np.cos(MIN_ANGLE):
-                continue
-            frame = _frame(data[i], data[j])
-            angle = np.arccos(np.clip(cosine, -1.0, 1.0))
-            for p in range(len(model)):
-                for q in range(len(model)):
-                    for first, second in _signed(model[p], model[q]) if p != q else ():
-                        if abs(np.arccos(np.clip(first @ second, -1.0, 1.0)) - angle) > ANGLE_AGREEMENT:
-                            continue
-                        rotation = _frame(first, second) @ frame.T
-                        if all(rotation_angle(rotation @ other.T) >= _SAME_ROTATION for other, _ in found):
-                            found.append((rotation, (i, j)))
+    for i, j in itertools.combinations(range(len(data)), 2):
+        cosine = float(data[i] @ data[j])
+        if abs(cosine) > np.cos(MIN_ANGLE):
+            continue
+        frame = _frame(data[i], data[j])
+        angle = np.arccos(np.clip(cosine, -1.0, 1.0))
+        for p, q in itertools.permutations(range(len(model)), 2):
+            for first, second in _signed(model[p], model[q]):
+                if abs(np.arccos(np.clip(first @ second, -1.0, 1.0)) - angle) > ANGLE_AGREEMENT:
+                    continue
+                rotation = _frame(first, second) @ frame.T
+                if all(rotation_angle(rotation @ other.T) >= _SAME_ROTATION for other, _ in found):
+                    found.append((rotation, (i, j)))
     return found
 
 
